@@ -1,0 +1,150 @@
+"""Writing glTF 2.0 binary files through pygltflib (no hand-written schema).
+
+Used by the scene generator (`scenes/generate.py`) and, later, by the bake
+file writer. Geometry goes in as flat numpy arrays; every primitive has one
+material; cameras and KHR_lights_punctual lights are nodes.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+import pygltflib as g
+
+
+def _look_rotation(forward, up):
+    """Quaternion (x, y, z, w) turning glTF's camera frame (-Z forward, +Y up)
+    onto `forward` and `up`."""
+    f = np.asarray(forward, float)
+    f = f / np.linalg.norm(f)
+    u = np.asarray(up, float)
+    r = np.cross(f, u)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    m = np.stack([r, u, -f], axis=1)  # columns: local x, y, z in world
+    w = np.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    x = np.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2
+    y = np.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2
+    z = np.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2
+    x = np.copysign(x, m[2, 1] - m[1, 2])
+    y = np.copysign(y, m[0, 2] - m[2, 0])
+    z = np.copysign(z, m[1, 0] - m[0, 1])
+    return [float(x), float(y), float(z), float(w)]
+
+
+class GltfBuilder:
+    """Accumulates meshes, materials, cameras and lights; `save` writes a .glb."""
+
+    def __init__(self):
+        self.doc = g.GLTF2(asset=g.Asset(generator="voxgi", version="2.0"))
+        self.doc.scenes = [g.Scene(nodes=[])]
+        self.doc.scene = 0
+        self.blob = bytearray()
+        self.lights = []
+        self.extensions_used = set()
+
+    # -- low level ---------------------------------------------------------
+    def _view(self, data: bytes, target=None) -> int:
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        self.doc.bufferViews.append(
+            g.BufferView(buffer=0, byteOffset=len(self.blob), byteLength=len(data), target=target))
+        self.blob.extend(data)
+        return len(self.doc.bufferViews) - 1
+
+    def _accessor(self, arr: np.ndarray, kind: str, target, with_bounds=False) -> int:
+        arr = np.ascontiguousarray(arr)
+        ctype = {np.dtype(np.float32): g.FLOAT, np.dtype(np.uint32): g.UNSIGNED_INT}[arr.dtype]
+        view = self._view(arr.tobytes(), target)
+        acc = g.Accessor(bufferView=view, componentType=ctype, count=len(arr) if arr.ndim > 1 else arr.size,
+                         type=kind)
+        if with_bounds:
+            acc.min = arr.min(axis=0).tolist()
+            acc.max = arr.max(axis=0).tolist()
+        self.doc.accessors.append(acc)
+        return len(self.doc.accessors) - 1
+
+    def _add_node(self, node: g.Node) -> int:
+        self.doc.nodes.append(node)
+        idx = len(self.doc.nodes) - 1
+        self.doc.scenes[0].nodes.append(idx)
+        return idx
+
+    # -- public ------------------------------------------------------------
+    def material(self, name, albedo, emission=(0.0, 0.0, 0.0), double_sided=False) -> int:
+        """Lambertian material; `emission` is radiance (W m^-2 sr^-1), split
+        into emissiveFactor (max 1) times KHR_materials_emissive_strength."""
+        albedo = [float(a) for a in albedo]
+        emission = np.asarray(emission, float)
+        strength = float(emission.max())
+        mat = g.Material(
+            name=name,
+            pbrMetallicRoughness=g.PbrMetallicRoughness(
+                baseColorFactor=albedo[:3] + [1.0], metallicFactor=0.0, roughnessFactor=1.0),
+            doubleSided=bool(double_sided))
+        if strength > 0:
+            mat.emissiveFactor = (emission / strength).tolist()
+            if strength != 1.0:
+                mat.extensions = {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}
+                self.extensions_used.add("KHR_materials_emissive_strength")
+        self.doc.materials.append(mat)
+        return len(self.doc.materials) - 1
+
+    def mesh(self, name, positions, triangles, material: int, normals=None, uvs=None) -> int:
+        """Adds one primitive. positions (n, 3), triangles (m, 3)."""
+        positions = np.asarray(positions, np.float32).reshape(-1, 3)
+        attrs = g.Attributes(POSITION=self._accessor(positions, "VEC3", g.ARRAY_BUFFER, True))
+        if normals is not None:
+            attrs.NORMAL = self._accessor(np.asarray(normals, np.float32).reshape(-1, 3), "VEC3", g.ARRAY_BUFFER)
+        if uvs is not None:
+            attrs.TEXCOORD_0 = self._accessor(np.asarray(uvs, np.float32).reshape(-1, 2), "VEC2", g.ARRAY_BUFFER)
+        idx = self._accessor(np.asarray(triangles, np.uint32).reshape(-1), "SCALAR", g.ELEMENT_ARRAY_BUFFER)
+        self.doc.meshes.append(g.Mesh(name=name, primitives=[
+            g.Primitive(attributes=attrs, indices=idx, material=material)]))
+        return self._add_node(g.Node(name=name, mesh=len(self.doc.meshes) - 1))
+
+    def camera(self, name, position, forward, up=(0, 1, 0), yfov_deg=45.0, aspect=1.0) -> int:
+        self.doc.cameras.append(g.Camera(name=name, type="perspective", perspective=g.Perspective(
+            yfov=float(np.radians(yfov_deg)), aspectRatio=float(aspect), znear=0.01)))
+        return self._add_node(g.Node(name=name, camera=len(self.doc.cameras) - 1,
+                                     translation=[float(v) for v in position],
+                                     rotation=_look_rotation(forward, up)))
+
+    def light(self, name, kind, color=(1, 1, 1), intensity=1.0, position=(0, 0, 0),
+              direction=(0, -1, 0), inner_deg=0.0, outer_deg=45.0) -> int:
+        """KHR_lights_punctual light; point and spot intensity in W/sr,
+        directional in W/m^2 (METHOD.md section 1)."""
+        light = {"name": name, "type": kind, "color": [float(c) for c in color], "intensity": float(intensity)}
+        if kind == "spot":
+            light["spot"] = {"innerConeAngle": float(np.radians(inner_deg)),
+                             "outerConeAngle": float(np.radians(outer_deg))}
+        self.lights.append(light)
+        self.extensions_used.add("KHR_lights_punctual")
+        up = (0, 0, 1) if abs(direction[1]) > 0.9 else (0, 1, 0)
+        node = g.Node(name=name, translation=[float(v) for v in position],
+                      rotation=_look_rotation(direction, up),
+                      extensions={"KHR_lights_punctual": {"light": len(self.lights) - 1}})
+        return self._add_node(node)
+
+    def save(self, path):
+        """Writes the .glb atomically (temporary file in the same folder, then rename)."""
+        if self.lights:
+            self.doc.extensions = {"KHR_lights_punctual": {"lights": self.lights}}
+        self.doc.extensionsUsed = sorted(self.extensions_used)
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        self.doc.buffers = [g.Buffer(byteLength=len(self.blob))]
+        self.doc.set_binary_blob(bytes(self.blob))
+        folder = os.path.dirname(os.path.abspath(path))
+        fd, tmp = tempfile.mkstemp(suffix=".glb.tmp", dir=folder)
+        os.close(fd)
+        try:
+            self.doc.save_binary(tmp)
+            os.chmod(tmp, 0o644)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+            raise
+        return path

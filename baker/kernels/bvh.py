@@ -1,0 +1,174 @@
+"""Bounding volume hierarchy over triangles: binned SAH build, flat arrays.
+
+Layout (depth-first): node i's left child is i + 1, its right child is
+`right[i]`; a leaf has count[i] > 0 and holds triangles first[i] ..
+first[i] + count[i] - 1 of the reordered triangle arrays. Triangles are
+stored reordered as (v0, e1 = v1 - v0, e2 = v2 - v0) in float64, with
+`tri_index` mapping back to the scene's triangle numbers.
+"""
+import numpy as np
+from numba import njit
+
+N_BINS = 16
+LEAF_MAX = 4
+COST_TRAVERSE = 1.0
+COST_INTERSECT = 1.0
+
+
+@njit(cache=True)
+def _surface(lo, hi):
+    dx, dy, dz = max(hi[0] - lo[0], 0.0), max(hi[1] - lo[1], 0.0), max(hi[2] - lo[2], 0.0)
+    return 2.0 * (dx * dy + dy * dz + dz * dx)
+
+
+@njit(cache=True)
+def build_bvh(corners, leaf_max):
+    """corners (nt, 3, 3) float64 -> (lo, hi, right, first, count, order).
+
+    Binned SAH (Wald 2007): 16 bins on each axis of the centroid bounds; a
+    node becomes a leaf when no split beats intersecting all its triangles
+    and it holds at most 4 * leaf_max, or when it holds at most leaf_max.
+    """
+    nt = corners.shape[0]
+    cen = np.empty((nt, 3))
+    tlo = np.empty((nt, 3))
+    thi = np.empty((nt, 3))
+    for i in range(nt):
+        for k in range(3):
+            a, b, c = corners[i, 0, k], corners[i, 1, k], corners[i, 2, k]
+            tlo[i, k] = min(a, min(b, c))
+            thi[i, k] = max(a, max(b, c))
+            cen[i, k] = 0.5 * (tlo[i, k] + thi[i, k])
+    order = np.arange(nt).astype(np.int32)
+    max_nodes = 2 * nt + 1
+    lo = np.empty((max_nodes, 3))
+    hi = np.empty((max_nodes, 3))
+    right = np.full(max_nodes, -1, np.int32)
+    first = np.zeros(max_nodes, np.int32)
+    count = np.zeros(max_nodes, np.int32)
+    # task stack: start, end, parent, is_right
+    st_start = np.empty(128, np.int64)
+    st_end = np.empty(128, np.int64)
+    st_parent = np.empty(128, np.int64)
+    st_right = np.empty(128, np.int64)
+    sp = 0
+    st_start[0], st_end[0], st_parent[0], st_right[0] = 0, nt, -1, 0
+    sp = 1
+    n_nodes = 0
+    bin_lo = np.empty((N_BINS, 3))
+    bin_hi = np.empty((N_BINS, 3))
+    bin_n = np.empty(N_BINS, np.int64)
+    left_area = np.empty(N_BINS)
+    left_n = np.empty(N_BINS, np.int64)
+    while sp > 0:
+        sp -= 1
+        start, end, parent, is_right = st_start[sp], st_end[sp], st_parent[sp], st_right[sp]
+        node = n_nodes
+        n_nodes += 1
+        if is_right:
+            right[parent] = node
+        clo = np.full(3, np.inf)
+        chi = np.full(3, -np.inf)
+        for k in range(3):
+            lo[node, k] = np.inf
+            hi[node, k] = -np.inf
+        for j in range(start, end):
+            t = order[j]
+            for k in range(3):
+                lo[node, k] = min(lo[node, k], tlo[t, k])
+                hi[node, k] = max(hi[node, k], thi[t, k])
+                clo[k] = min(clo[k], cen[t, k])
+                chi[k] = max(chi[k], cen[t, k])
+        n = end - start
+        if n <= leaf_max:
+            first[node], count[node] = start, n
+            continue
+        best_cost, best_axis, best_bin = np.inf, -1, -1
+        for axis in range(3):
+            ext = chi[axis] - clo[axis]
+            if ext <= 0.0:
+                continue
+            scale = N_BINS / ext
+            for b in range(N_BINS):
+                bin_n[b] = 0
+                for k in range(3):
+                    bin_lo[b, k] = np.inf
+                    bin_hi[b, k] = -np.inf
+            for j in range(start, end):
+                t = order[j]
+                b = min(int((cen[t, axis] - clo[axis]) * scale), N_BINS - 1)
+                bin_n[b] += 1
+                for k in range(3):
+                    bin_lo[b, k] = min(bin_lo[b, k], tlo[t, k])
+                    bin_hi[b, k] = max(bin_hi[b, k], thi[t, k])
+            alo = np.full(3, np.inf)
+            ahi = np.full(3, -np.inf)
+            cnt = 0
+            for b in range(N_BINS - 1):
+                cnt += bin_n[b]
+                for k in range(3):
+                    alo[k] = min(alo[k], bin_lo[b, k])
+                    ahi[k] = max(ahi[k], bin_hi[b, k])
+                left_n[b] = cnt
+                left_area[b] = _surface(alo, ahi) if cnt > 0 else 0.0
+            alo[:] = np.inf
+            ahi[:] = -np.inf
+            cnt = 0
+            for b in range(N_BINS - 1, 0, -1):
+                cnt += bin_n[b]
+                for k in range(3):
+                    alo[k] = min(alo[k], bin_lo[b, k])
+                    ahi[k] = max(ahi[k], bin_hi[b, k])
+                ra = _surface(alo, ahi) if cnt > 0 else 0.0
+                cost = left_area[b - 1] * left_n[b - 1] + ra * cnt
+                if left_n[b - 1] > 0 and cnt > 0 and cost < best_cost:
+                    best_cost, best_axis, best_bin = cost, axis, b
+        area = _surface(lo[node], hi[node])
+        leaf_cost = COST_INTERSECT * n
+        split_cost = COST_TRAVERSE + COST_INTERSECT * best_cost / area if area > 0 else np.inf
+        if best_axis < 0 or (split_cost >= leaf_cost and n <= 4 * leaf_max):
+            if best_axis < 0 and n > leaf_max:
+                mid = start + n // 2  # all centroids equal: split by count
+            else:
+                first[node], count[node] = start, n
+                continue
+        else:
+            scale = N_BINS / (chi[best_axis] - clo[best_axis])
+            i, j = start, end - 1
+            while i <= j:
+                b = min(int((cen[order[i], best_axis] - clo[best_axis]) * scale), N_BINS - 1)
+                if b < best_bin:
+                    i += 1
+                else:
+                    order[i], order[j] = order[j], order[i]
+                    j -= 1
+            mid = i
+        if sp + 2 > st_start.shape[0]:
+            grow = st_start.shape[0] * 2
+            st_start = np.concatenate((st_start, np.empty(grow, np.int64)))
+            st_end = np.concatenate((st_end, np.empty(grow, np.int64)))
+            st_parent = np.concatenate((st_parent, np.empty(grow, np.int64)))
+            st_right = np.concatenate((st_right, np.empty(grow, np.int64)))
+        # push right first so the left child is built next (index node + 1)
+        st_start[sp], st_end[sp], st_parent[sp], st_right[sp] = mid, end, node, 1
+        sp += 1
+        st_start[sp], st_end[sp], st_parent[sp], st_right[sp] = start, mid, node, 0
+        sp += 1
+    return lo[:n_nodes].copy(), hi[:n_nodes].copy(), right[:n_nodes].copy(), first[:n_nodes].copy(), \
+        count[:n_nodes].copy(), order
+
+
+@njit(cache=True)
+def reorder_triangles(corners, order, pad):
+    """(v0, e1, e2) float64 (nt, 3) each, in BVH order."""
+    nt = order.shape[0]
+    v0 = np.empty((nt, 3))
+    e1 = np.empty((nt, 3))
+    e2 = np.empty((nt, 3))
+    for i in range(nt):
+        t = order[i]
+        for k in range(3):
+            v0[i, k] = corners[t, 0, k]
+            e1[i, k] = corners[t, 1, k] - corners[t, 0, k]
+            e2[i, k] = corners[t, 2, k] - corners[t, 0, k]
+    return v0, e1, e2

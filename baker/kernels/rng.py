@@ -1,0 +1,35 @@
+"""Counter-based random numbers: a hash of (seed, index, dimension).
+
+No state is carried between samples, so which thread draws a number does not
+change it: images and photon sets are identical for any thread count.
+"""
+import numpy as np
+from numba import njit
+
+_C1 = np.uint64(0x9E3779B97F4A7C15)
+_C2 = np.uint64(0xBF58476D1CE4E5B9)
+_C3 = np.uint64(0x94D049BB133111EB)
+_INV53 = 1.0 / 9007199254740992.0
+
+
+@njit(cache=True, inline="always")
+def mix64(x):
+    """splitmix64 finaliser (Steele, Lea & Flood 2014): a bijection of uint64."""
+    x = (x ^ (x >> np.uint64(30))) * _C2
+    x = (x ^ (x >> np.uint64(27))) * _C3
+    return x ^ (x >> np.uint64(31))
+
+
+@njit(cache=True, inline="always")
+def rand01(seed, index, dim):
+    """Uniform double in [0, 1) for (seed, index, dim); all three int-like."""
+    h = mix64(np.uint64(seed) * _C1 + np.uint64(index))
+    h = mix64(h ^ (np.uint64(dim) * _C2 + _C1))
+    return float(h >> np.uint64(11)) * _INV53
+
+
+@njit(cache=True, inline="always")
+def rand_index(seed, index, dim, n):
+    """Uniform integer in [0, n)."""
+    k = int(rand01(seed, index, dim) * n)
+    return k if k < n else n - 1

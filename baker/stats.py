@@ -1,0 +1,69 @@
+"""Timers, counters and peak memory per stage; written as JSON by --stats."""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import resource
+import time
+from contextlib import contextmanager
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far, MiB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+class Stats:
+    """Stage timings (seconds), peak memory after each stage, counters."""
+
+    def __init__(self, command: str = ""):
+        self.command = command
+        self.stages = {}
+        self.counters = {}
+        self._t0 = time.perf_counter()
+
+    @contextmanager
+    def stage(self, name: str):
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            entry = self.stages.setdefault(name, {"seconds": 0.0})
+            entry["seconds"] += time.perf_counter() - t
+            entry["peak_rss_mb"] = round(peak_rss_mb(), 1)
+
+    def count(self, **values):
+        self.counters.update(values)
+
+    def as_dict(self) -> dict:
+        import numba
+        return {
+            "command": self.command,
+            "total_seconds": time.perf_counter() - self._t0,
+            "stages": self.stages,
+            "counters": self.counters,
+            "peak_rss_mb": round(peak_rss_mb(), 1),
+            "machine": {"cpus": os.cpu_count(), "threads": numba.get_num_threads(),
+                        "cpu": platform.processor() or platform.machine(), "python": platform.python_version()},
+        }
+
+    def write(self, path):
+        from .images import _atomic
+
+        def w(tmp):
+            with open(tmp, "w") as f:
+                json.dump(self.as_dict(), f, indent=2, default=_jsonable)
+        _atomic(path, w)
+
+
+def _jsonable(x):
+    try:
+        import numpy as np
+        if isinstance(x, np.generic):
+            return x.item()
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+    except ImportError:
+        pass
+    return str(x)
