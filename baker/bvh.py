@@ -16,14 +16,14 @@ class BVH:
     right: np.ndarray       # (nn,) int32 right child (left child is node + 1)
     first: np.ndarray       # (nn,) int32 first triangle of a leaf
     count: np.ndarray       # (nn,) int32 triangles in a leaf (0: inner node)
-    v0: np.ndarray          # (nt, 3) float64 triangles in BVH order
-    e1: np.ndarray
-    e2: np.ndarray
+    v0: np.ndarray          # (nt, 3) float64 triangle corners in BVH order
+    v1: np.ndarray
+    v2: np.ndarray
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
 
     @property
     def arrays(self):
-        return (self.lo, self.hi, self.right, self.first, self.count, self.v0, self.e1, self.e2, self.tri_index)
+        return (self.lo, self.hi, self.right, self.first, self.count, self.v0, self.v1, self.v2, self.tri_index)
 
     @property
     def node_count(self) -> int:
@@ -55,8 +55,8 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
     lo, hi, right, first, count, order = build_bvh(corners, leaf_max)
     scale = float(np.abs(corners).max()) if corners.size else 1.0
     pad = 1e-9 * max(scale, 1e-30)
-    v0, e1, e2 = reorder_triangles(corners, order, pad)
-    return BVH(lo - pad, hi + pad, right, first, count, v0, e1, e2, order.astype(np.int32))
+    v0, v1, v2 = reorder_triangles(corners, order)
+    return BVH(lo - pad, hi + pad, right, first, count, v0, v1, v2, order.astype(np.int32))
 
 
 def build_scene_bvh(scene) -> BVH:

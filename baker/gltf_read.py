@@ -92,14 +92,14 @@ def _world_nodes(doc):
     else:
         children = {c for n in doc.nodes for c in (n.children or [])}
         roots = [i for i in range(len(doc.nodes)) if i not in children]
-    stack = [(i, np.eye(4), 0) for i in roots]
+    stack = [(i, np.eye(4), 0) for i in reversed(roots)]  # depth-first, document order
     while stack:
         i, parent, depth = stack.pop()
         if depth > 256:
             raise SceneError("node hierarchy deeper than 256 (a cycle?)")
         world = parent @ _node_matrix(doc.nodes[i])
         yield i, world
-        stack.extend((c, world, depth + 1) for c in (doc.nodes[i].children or []))
+        stack.extend((c, world, depth + 1) for c in reversed(doc.nodes[i].children or []))
 
 
 def _texture(doc, bufs, tex_index, path, folder):

@@ -17,7 +17,7 @@ from numba import njit, prange
 
 from .kernels.rng import rand01
 from .kernels.sampling import cosine_hemisphere
-from .kernels.traverse import any_hit, closest_hit
+from .kernels.traverse import any_hit, closest_hit, hit_normal
 from .render import primary_ray
 from .surfaces import albedo_at, punctual_irradiance, sample_emitter
 
@@ -41,12 +41,7 @@ def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
         if j < 0:
             break
         tri = tri_index[j]
-        e1, e2 = bvh[6], bvh[7]
-        nx = e1[j, 1] * e2[j, 2] - e1[j, 2] * e2[j, 1]
-        ny = e1[j, 2] * e2[j, 0] - e1[j, 0] * e2[j, 2]
-        nz = e1[j, 0] * e2[j, 1] - e1[j, 1] * e2[j, 0]
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        nx, ny, nz = nx / ln, ny / ln, nz / ln
+        nx, ny, nz = hit_normal(bvh, j)
         cos_in = -(nx * dx + ny * dy + nz * dz)
         mat = mat_of[tri]
         if cos_in < 0.0:

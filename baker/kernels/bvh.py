@@ -3,7 +3,7 @@
 Layout (depth-first): node i's left child is i + 1, its right child is
 `right[i]`; a leaf has count[i] > 0 and holds triangles first[i] ..
 first[i] + count[i] - 1 of the reordered triangle arrays. Triangles are
-stored reordered as (v0, e1 = v1 - v0, e2 = v2 - v0) in float64, with
+stored reordered as their corners (v0, v1, v2) in float64, with
 `tri_index` mapping back to the scene's triangle numbers.
 """
 import numpy as np
@@ -159,16 +159,16 @@ def build_bvh(corners, leaf_max):
 
 
 @njit(cache=True)
-def reorder_triangles(corners, order, pad):
-    """(v0, e1, e2) float64 (nt, 3) each, in BVH order."""
+def reorder_triangles(corners, order):
+    """Corners (v0, v1, v2) float64 (nt, 3) each, in BVH order."""
     nt = order.shape[0]
     v0 = np.empty((nt, 3))
-    e1 = np.empty((nt, 3))
-    e2 = np.empty((nt, 3))
+    v1 = np.empty((nt, 3))
+    v2 = np.empty((nt, 3))
     for i in range(nt):
         t = order[i]
         for k in range(3):
             v0[i, k] = corners[t, 0, k]
-            e1[i, k] = corners[t, 1, k] - corners[t, 0, k]
-            e2[i, k] = corners[t, 2, k] - corners[t, 0, k]
-    return v0, e1, e2
+            v1[i, k] = corners[t, 1, k]
+            v2[i, k] = corners[t, 2, k]
+    return v0, v1, v2

@@ -1,9 +1,9 @@
 """Ray queries on the BVH of `bvh.py`: closest hit and any hit (shadow rays).
 
-`bvh` below is the tuple (lo, hi, right, first, count, v0, e1, e2, tri_index)
+`bvh` below is the tuple (lo, hi, right, first, count, v0, v1, v2, tri_index)
 that `baker.bvh.BVH.arrays` returns. The scalar queries are called from
 other kernels; the `*_batch` ones from Python, parallel over rays.
-Triangles are hit from both sides (Moller-Trumbore, float64); the caller
+Triangles are hit from both sides (watertight test, float64); the caller
 decides what the back side means.
 """
 import numpy as np
@@ -37,36 +37,56 @@ def _box(lo, hi, i, ox, oy, oz, ix, iy, iz, tmin, tmax):
 
 
 @njit(cache=True, inline="always")
-def intersect_triangle(v0, e1, e2, j, ox, oy, oz, dx, dy, dz):
-    """Moller-Trumbore; returns (t, u, v), t = inf on a miss. Edges and
-    vertices count as inside (u, v >= 0, u + v <= 1)."""
-    px = dy * e2[j, 2] - dz * e2[j, 1]
-    py = dz * e2[j, 0] - dx * e2[j, 2]
-    pz = dx * e2[j, 1] - dy * e2[j, 0]
-    det = e1[j, 0] * px + e1[j, 1] * py + e1[j, 2] * pz
+def ray_shear(dx, dy, dz):
+    """Per-ray set-up of the watertight test: axis permutation (kx, ky, kz)
+    with kz the dominant axis, and the shear (sx, sy, sz)."""
+    ax, ay, az = abs(dx), abs(dy), abs(dz)
+    if ax >= ay and ax >= az:
+        kz = 0
+    elif ay >= az:
+        kz = 1
+    else:
+        kz = 2
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    d = (dx, dy, dz)
+    if d[kz] < 0.0:
+        kx, ky = ky, kx
+    return kx, ky, kz, d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]
+
+
+@njit(cache=True, inline="always")
+def intersect_triangle(v0, v1, v2, j, o, kx, ky, kz, sx, sy, sz):
+    """Watertight ray/triangle test (Woop, Benthin & Wald 2013, JCGT 2(1)):
+    rays through a shared edge or vertex hit at least one of the triangles,
+    never slip between them. Returns (t, u, v) with u, v the weights of
+    v1, v2; t = inf on a miss."""
+    ax, ay, az = v0[j, kx] - o[kx], v0[j, ky] - o[ky], v0[j, kz] - o[kz]
+    bx, by, bz = v1[j, kx] - o[kx], v1[j, ky] - o[ky], v1[j, kz] - o[kz]
+    cx, cy, cz = v2[j, kx] - o[kx], v2[j, ky] - o[ky], v2[j, kz] - o[kz]
+    ax, ay = ax - sx * az, ay - sy * az
+    bx, by = bx - sx * bz, by - sy * bz
+    cx, cy = cx - sx * cz, cy - sy * cz
+    eu = cx * by - cy * bx
+    ev = ax * cy - ay * cx
+    ew = bx * ay - by * ax
+    if (eu < 0.0 or ev < 0.0 or ew < 0.0) and (eu > 0.0 or ev > 0.0 or ew > 0.0):
+        return np.inf, 0.0, 0.0
+    det = eu + ev + ew
     if det == 0.0:
         return np.inf, 0.0, 0.0
-    inv = 1.0 / det
-    tx, ty, tz = ox - v0[j, 0], oy - v0[j, 1], oz - v0[j, 2]
-    u = (tx * px + ty * py + tz * pz) * inv
-    if u < 0.0 or u > 1.0:
-        return np.inf, 0.0, 0.0
-    qx = ty * e1[j, 2] - tz * e1[j, 1]
-    qy = tz * e1[j, 0] - tx * e1[j, 2]
-    qz = tx * e1[j, 1] - ty * e1[j, 0]
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    if v < 0.0 or u + v > 1.0:
-        return np.inf, 0.0, 0.0
-    t = (e2[j, 0] * qx + e2[j, 1] * qy + e2[j, 2] * qz) * inv
-    return t, u, v
+    t = (eu * sz * az + ev * sz * bz + ew * sz * cz) / det
+    return t, ev / det, ew / det
 
 
 @njit(cache=True)
 def closest_hit(bvh, ox, oy, oz, dx, dy, dz, tmin, tmax):
     """First hit with t in (tmin, tmax): (t, bvh-order triangle j, u, v);
     j = -1 on a miss."""
-    lo, hi, right, first, count, v0, e1, e2 = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5], bvh[6], bvh[7]
+    lo, hi, right, first, count, v0, v1, v2 = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5], bvh[6], bvh[7]
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
+    o = (ox, oy, oz)
     best_t, best_j, best_u, best_v = tmax, -1, 0.0, 0.0
     stack = np.empty(96, np.int32)
     stack_t = np.empty(96)
@@ -78,7 +98,7 @@ def closest_hit(bvh, ox, oy, oz, dx, dy, dz, tmin, tmax):
         if count[node] > 0:
             f = first[node]
             for j in range(f, f + count[node]):
-                t, u, v = intersect_triangle(v0, e1, e2, j, ox, oy, oz, dx, dy, dz)
+                t, u, v = intersect_triangle(v0, v1, v2, j, o, kx, ky, kz, sx, sy, sz)
                 if tmin < t < best_t:
                     best_t, best_j, best_u, best_v = t, j, u, v
             node = -1
@@ -109,8 +129,10 @@ def closest_hit(bvh, ox, oy, oz, dx, dy, dz, tmin, tmax):
 @njit(cache=True)
 def any_hit(bvh, ox, oy, oz, dx, dy, dz, tmin, tmax):
     """True if anything is hit with t in (tmin, tmax)."""
-    lo, hi, right, first, count, v0, e1, e2 = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5], bvh[6], bvh[7]
+    lo, hi, right, first, count, v0, v1, v2 = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5], bvh[6], bvh[7]
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
+    o = (ox, oy, oz)
     stack = np.empty(96, np.int32)
     sp = 0
     if _box(lo, hi, 0, ox, oy, oz, ix, iy, iz, tmin, tmax) == np.inf:
@@ -120,7 +142,7 @@ def any_hit(bvh, ox, oy, oz, dx, dy, dz, tmin, tmax):
         if count[node] > 0:
             f = first[node]
             for j in range(f, f + count[node]):
-                t, u, v = intersect_triangle(v0, e1, e2, j, ox, oy, oz, dx, dy, dz)
+                t, u, v = intersect_triangle(v0, v1, v2, j, o, kx, ky, kz, sx, sy, sz)
                 if tmin < t < tmax:
                     return True
             node = -1
@@ -171,3 +193,14 @@ def any_hit_batch(bvh, origins, dirs, tmin, tmax):
         out[i] = any_hit(bvh, origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
                          tmin, tmax[i])
     return out
+
+
+@njit(cache=True, inline="always")
+def hit_normal(bvh, j):
+    """Unit geometric normal (winding order) of BVH-order triangle j."""
+    v0, v1, v2 = bvh[5], bvh[6], bvh[7]
+    ax, ay, az = v1[j, 0] - v0[j, 0], v1[j, 1] - v0[j, 1], v1[j, 2] - v0[j, 2]
+    bx, by, bz = v2[j, 0] - v0[j, 0], v2[j, 1] - v0[j, 1], v2[j, 2] - v0[j, 2]
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ln = np.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx / ln, ny / ln, nz / ln

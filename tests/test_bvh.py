@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from baker import bvh as bvh_mod
+from tests.naive import ray_triangles
+
+
+def random_soup(rng, n, spread=1.0, size=0.2):
+    centres = rng.random((n, 1, 3)) * spread
+    return centres + (rng.random((n, 3, 3)) - 0.5) * size
+
+
+def check_against_brute_force(corners, origins, dirs):
+    tree = bvh_mod.build(corners, leaf_max=2)
+    t, tri, u, v = tree.closest(origins, dirs)
+    occl = tree.occluded(origins, dirs, tmax=np.full(len(origins), 0.5))
+    for i in range(len(origins)):
+        tr, kr = ray_triangles(origins[i], dirs[i], corners)
+        if kr < 0:
+            assert tri[i] == -1 and t[i] == np.inf
+        else:
+            # equal t on shared edges may pick either triangle: compare t, then the hit point
+            assert t[i] == pytest.approx(tr, rel=1e-12, abs=1e-12)
+            assert tri[i] >= 0
+        ts, _ = ray_triangles(origins[i], dirs[i], corners, tmax=0.5)
+        assert occl[i] == (ts < np.inf)
+
+
+def test_random_soup_matches_brute_force():
+    rng = np.random.default_rng(3)
+    corners = random_soup(rng, 400)
+    o = rng.random((600, 3)) * 1.4 - 0.2
+    d = rng.normal(size=(600, 3))
+    check_against_brute_force(corners, o, d)
+
+
+def test_rays_through_vertices_and_edges():
+    """A grid of triangles sharing edges and vertices; rays aimed exactly at
+    vertices and edge midpoints, and grazing along the plane."""
+    n = 6
+    xs = np.linspace(0, 1, n + 1)
+    corners = []
+    for i in range(n):
+        for j in range(n):
+            a, b = (xs[i], 0, xs[j]), (xs[i + 1], 0, xs[j])
+            c, d = (xs[i + 1], 0, xs[j + 1]), (xs[i], 0, xs[j + 1])
+            corners += [(a, b, c), (a, c, d)]
+    corners = np.array(corners, float)
+    targets = np.concatenate([corners.reshape(-1, 3), (corners[:, 0] + corners[:, 1]) / 2,
+                              (corners[:, 0] + corners[:, 2]) / 2])
+    rng = np.random.default_rng(5)
+    origins = targets + np.array([0.0, 1.0, 0.0]) + rng.normal(scale=0.2, size=targets.shape) * [1, 0, 1]
+    dirs = targets - origins
+    tree = bvh_mod.build(corners)
+    t, tri, _, _ = tree.closest(origins, dirs)
+    # every ray aimed at a vertex or an edge of the closed grid hits it (no cracks), at t = 1
+    assert (tri >= 0).all()
+    np.testing.assert_allclose(t, 1.0, rtol=1e-9)
+    check_against_brute_force(corners, origins, dirs)
+    # rays in the plane of the grid (grazing) do not crash and agree with brute force
+    o = np.column_stack([np.full(50, -0.5), np.zeros(50), rng.random(50)])
+    check_against_brute_force(corners, o, np.tile([1.0, 0.0, 0.0], (50, 1)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 300), st.integers(0, 2**31 - 1), st.floats(0.01, 1.0))
+def test_property_bvh_equals_brute_force(n, seed, size):
+    rng = np.random.default_rng(seed)
+    corners = random_soup(rng, n, size=size)
+    o = rng.random((40, 3)) * 1.4 - 0.2
+    d = rng.normal(size=(40, 3))
+    check_against_brute_force(corners, o, d)
+
+
+def test_bvh_structure_invariants():
+    rng = np.random.default_rng(7)
+    corners = random_soup(rng, 1000)
+    tree = bvh_mod.build(corners)
+    # every triangle in exactly one leaf, inside every box on its path
+    seen = np.zeros(1000, int)
+    stack = [(0, [])]
+    while stack:
+        node, path = stack.pop()
+        path = path + [node]
+        if tree.count[node] > 0:
+            for j in range(tree.first[node], tree.first[node] + tree.count[node]):
+                seen[tree.tri_index[j]] += 1
+                pts = corners[tree.tri_index[j]]
+                for p in path:
+                    assert (pts >= tree.lo[p]).all() and (pts <= tree.hi[p]).all()
+        else:
+            stack += [(node + 1, path), (tree.right[node], path)]
+    assert (seen == 1).all()
