@@ -5,25 +5,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.bvh import LEAF_MAX, build_bvh, reorder_triangles
+from .kernels.bvh import LEAF_MAX, build_bvh, pack_nodes, reorder_triangles
 from .kernels.traverse import any_hit_batch, closest_hit_batch
 
 
 @dataclass(frozen=True)
 class BVH:
-    lo: np.ndarray          # (nn, 3) float64 node bounds
-    hi: np.ndarray
+    child_box: np.ndarray   # (nn, 12) float32 boxes of the two children of each inner node
+    root_box: np.ndarray    # (6,) float64
     right: np.ndarray       # (nn,) int32 right child (left child is node + 1)
     first: np.ndarray       # (nn,) int32 first triangle of a leaf
     count: np.ndarray       # (nn,) int32 triangles in a leaf (0: inner node)
-    v0: np.ndarray          # (nt, 3) float64 triangle corners in BVH order
-    v1: np.ndarray
-    v2: np.ndarray
+    tris: np.ndarray        # (nt, 9) float32 corners in BVH order
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
 
     @property
     def arrays(self):
-        return (self.lo, self.hi, self.right, self.first, self.count, self.v0, self.v1, self.v2, self.tri_index)
+        return (self.child_box, self.root_box, self.right, self.first, self.count, self.tris, self.tri_index)
 
     @property
     def node_count(self) -> int:
@@ -47,16 +45,34 @@ def _rays(origins, dirs, tmax):
     return o, d, tm
 
 
+def _outward32(box):
+    """float64 boxes (..., 6 or 12) -> float32 rounded outward (lo down, hi up)."""
+    b32 = box.astype(np.float32)
+    shape = b32.shape
+    b = box.reshape(-1, 6)
+    f = b32.reshape(-1, 6)
+    lo_up = f[:, :3] > b[:, :3]
+    f[:, :3][lo_up] = np.nextafter(f[:, :3][lo_up], np.float32(-np.inf))
+    hi_dn = f[:, 3:] < b[:, 3:]
+    f[:, 3:][hi_dn] = np.nextafter(f[:, 3:][hi_dn], np.float32(np.inf))
+    return f.reshape(shape)
+
+
 def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
-    """BVH over triangles given as corners (nt, 3, 3). Node boxes are padded
-    by a relative 1e-9 of the scene extent so that rays lying in a box face
-    are not lost to rounding."""
-    corners = np.ascontiguousarray(corners, np.float64)
+    """BVH over triangles given as corners (nt, 3, 3) (binned SAH).
+
+    Corners are stored as float32: exact for scene vertices (float32 already).
+    Node boxes are padded by a relative 1e-9 of the scene extent and rounded
+    outward to float32 so rounding never loses a hit."""
+    corners = np.ascontiguousarray(np.asarray(corners, np.float32), np.float64)
     lo, hi, right, first, count, order = build_bvh(corners, leaf_max)
     scale = float(np.abs(corners).max()) if corners.size else 1.0
     pad = 1e-9 * max(scale, 1e-30)
-    v0, v1, v2 = reorder_triangles(corners, order)
-    return BVH(lo - pad, hi + pad, right, first, count, v0, v1, v2, order.astype(np.int32))
+    lo, hi = lo - pad, hi + pad
+    child = pack_nodes(lo, hi, right, count)
+    root = np.concatenate([lo[0], hi[0]]).astype(np.float64)
+    return BVH(_outward32(child), root, right, first, count, reorder_triangles(corners, order).astype(np.float32),
+               order.astype(np.int32))
 
 
 def build_scene_bvh(scene) -> BVH:

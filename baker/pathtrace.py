@@ -17,7 +17,7 @@ from numba import njit, prange
 
 from .kernels.rng import rand01
 from .kernels.sampling import cosine_hemisphere
-from .kernels.traverse import any_hit, closest_hit, hit_normal
+from .kernels.traverse import STACK_SIZE, any_hit, closest_hit, hit_normal
 from .render import primary_ray
 from .surfaces import albedo_at, punctual_irradiance, sample_emitter
 
@@ -27,9 +27,9 @@ _DIMS_PER_BOUNCE = 16
 
 
 @njit(cache=True)
-def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
+def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
     """Radiance (r, g, b) arriving at o from direction -d, and the depth reached."""
-    tri_index = bvh[8]
+    tri_index = bvh[6]
     mat_of, emission, double = surf[0], surf[2], surf[3]
     n_emitters = surf[6].shape[0]
     n_lights = surf[13].shape[0]
@@ -37,7 +37,7 @@ def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
     tr, tg, tb = 1.0, 1.0, 1.0
     pdf_bsdf = 0.0  # 0: the camera ray (emission counts in full)
     for depth in range(MAX_DEPTH):
-        t, j, u, v = closest_hit(bvh, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:
             break
         tri = tri_index[j]
@@ -80,7 +80,7 @@ def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
             lmat = mat_of[ltri]
             if double[lmat]:
                 cos_l = abs(cos_l)
-            if cos_x > 0.0 and cos_l > 0.0 and not any_hit(bvh, px, py, pz, wx, wy, wz, 0.0, dist * (1.0 - 1e-7)
+            if cos_x > 0.0 and cos_l > 0.0 and not any_hit(bvh, stack, px, py, pz, wx, wy, wz, 0.0, dist * (1.0 - 1e-7)
                                                               - eps):
                 pdf_light = pdf_area * d2 / cos_l
                 pb = cos_x / math.pi
@@ -92,7 +92,7 @@ def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
         # punctual lights: all of them, deterministic
         for i in range(n_lights):
             hr, hg, hb, sx, sy, sz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)
-            if (hr > 0.0 or hg > 0.0 or hb > 0.0) and not any_hit(bvh, px, py, pz, sx, sy, sz, 0.0, dist):
+            if (hr > 0.0 or hg > 0.0 or hb > 0.0) and not any_hit(bvh, stack, px, py, pz, sx, sy, sz, 0.0, dist):
                 lr += tr * ar / math.pi * hr
                 lg += tg * ag / math.pi * hg
                 lb += tb * ab / math.pi * hb
@@ -116,6 +116,7 @@ def trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz):
 def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out):
     n = (row1 - row0) * width
     for k in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
         y = row0 + k // width
         x = k % width
         pixel = y * width + x
@@ -125,7 +126,7 @@ def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out)
             jx = rand01(seed, index, 1000001)
             jy = rand01(seed, index, 1000002)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, jx, jy, width, height)
-            r, g, b = trace_path(bvh, surf, eps, seed, index, ox, oy, oz, dx, dy, dz)
+            r, g, b = trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz)
             sr += r
             sg += g
             sb += b
@@ -150,7 +151,7 @@ def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs):
     out = np.zeros((n, 3))
     for i in prange(n):
         for s in range(spp):
-            r, g, b = trace_path(bvh, surf, eps, seed, i * spp + s, origins[i, 0], origins[i, 1], origins[i, 2],
+            r, g, b = trace_path(bvh, surf, stack, eps, seed, i * spp + s, origins[i, 0], origins[i, 1], origins[i, 2],
                                  dirs[i, 0], dirs[i, 1], dirs[i, 2])
             out[i, 0] += r
             out[i, 1] += g

@@ -8,7 +8,8 @@ from tests.naive import ray_triangles
 
 def random_soup(rng, n, spread=1.0, size=0.2):
     centres = rng.random((n, 1, 3)) * spread
-    return centres + (rng.random((n, 3, 3)) - 0.5) * size
+    # float32-exact corners: the BVH stores float32 (exact for scene vertices)
+    return (centres + (rng.random((n, 3, 3)) - 0.5) * size).astype(np.float32).astype(float)
 
 
 def check_against_brute_force(corners, origins, dirs):
@@ -75,20 +76,21 @@ def test_property_bvh_equals_brute_force(n, seed, size):
 
 def test_bvh_structure_invariants():
     rng = np.random.default_rng(7)
-    corners = random_soup(rng, 1000)
+    corners = random_soup(rng, 1000).astype(np.float32).astype(float)
     tree = bvh_mod.build(corners)
     # every triangle in exactly one leaf, inside every box on its path
     seen = np.zeros(1000, int)
-    stack = [(0, [])]
+    stack = [(0, [tree.root_box])]
     while stack:
-        node, path = stack.pop()
-        path = path + [node]
+        node, boxes = stack.pop()
         if tree.count[node] > 0:
             for j in range(tree.first[node], tree.first[node] + tree.count[node]):
                 seen[tree.tri_index[j]] += 1
                 pts = corners[tree.tri_index[j]]
-                for p in path:
-                    assert (pts >= tree.lo[p]).all() and (pts <= tree.hi[p]).all()
+                np.testing.assert_array_equal(tree.tris[j].reshape(3, 3), pts)
+                for b in boxes:
+                    assert (pts >= b[:3]).all() and (pts <= b[3:]).all()
         else:
-            stack += [(node + 1, path), (tree.right[node], path)]
+            cb = tree.child_box[node].astype(float)
+            stack += [(node + 1, boxes + [cb[:6]]), (tree.right[node], boxes + [cb[6:]])]
     assert (seen == 1).all()

@@ -159,16 +159,32 @@ def build_bvh(corners, leaf_max):
 
 
 @njit(cache=True)
+def pack_nodes(lo, hi, right, count):
+    """child_box (nn, 12): for each inner node the boxes (lo xyz, hi xyz) of
+    its left child (node + 1) and right child, float64 (rounded outward
+    to float32 by the caller)."""
+    nn = right.shape[0]
+    cb = np.zeros((nn, 12))
+    for i in range(nn):
+        if count[i] == 0:
+            a, b = i + 1, right[i]
+            for k in range(3):
+                cb[i, k] = lo[a, k]
+                cb[i, 3 + k] = hi[a, k]
+                cb[i, 6 + k] = lo[b, k]
+                cb[i, 9 + k] = hi[b, k]
+    return cb
+
+
+@njit(cache=True)
 def reorder_triangles(corners, order):
-    """Corners (v0, v1, v2) float64 (nt, 3) each, in BVH order."""
+    """(nt, 9) corners v0 v1 v2 in BVH order (float64; stored as float32,
+    which is exact for float32 scene vertices)."""
     nt = order.shape[0]
-    v0 = np.empty((nt, 3))
-    v1 = np.empty((nt, 3))
-    v2 = np.empty((nt, 3))
+    out = np.empty((nt, 9))
     for i in range(nt):
         t = order[i]
-        for k in range(3):
-            v0[i, k] = corners[t, 0, k]
-            v1[i, k] = corners[t, 1, k]
-            v2[i, k] = corners[t, 2, k]
-    return v0, v1, v2
+        for c in range(3):
+            for k in range(3):
+                out[i, 3 * c + k] = corners[t, c, k]
+    return out
