@@ -150,6 +150,7 @@ def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs):
     n = origins.shape[0]
     out = np.zeros((n, 3))
     for i in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
         for s in range(spp):
             r, g, b = trace_path(bvh, surf, stack, eps, seed, i * spp + s, origins[i, 0], origins[i, 1], origins[i, 2],
                                  dirs[i, 0], dirs[i, 1], dirs[i, 2])
