@@ -5,7 +5,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def frame(nx, ny, nz):
     """Two unit tangents (t, b) completing unit n to a right-handed frame
     (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
@@ -15,7 +15,7 @@ def frame(nx, ny, nz):
     return (1.0 + s * nx * nx * a, s * b, -s * nx), (b, s + ny * ny * a, -ny)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def cosine_hemisphere(u1, u2, nx, ny, nz):
     """Direction about n with pdf cos(theta)/pi; returns (dx, dy, dz, cos)."""
     r = math.sqrt(u1)
@@ -26,7 +26,7 @@ def cosine_hemisphere(u1, u2, nx, ny, nz):
     return (x * t[0] + y * b[0] + z * nx, x * t[1] + y * b[1] + z * ny, x * t[2] + y * b[2] + z * nz, z)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def triangle_point(u1, u2):
     """Uniform barycentrics (b1, b2) on a triangle (square-root mapping)."""
     su = math.sqrt(u1)

@@ -1,0 +1,237 @@
+"""First bounce by photons (METHOD.md section 5).
+
+Photons leave the emitters (area triangles by power, uniform on the
+triangle, cosine-distributed; punctual lights by power and profile), are
+traced through the BVH to their first hit and deposit their power in the
+voxel of the hit cell whose facing matches the side they hit:
+H_1(x) = deposited power / area(x). They are stored, never reflected.
+
+Sampling is quasi-random and counter-based: photon i picks its light by a
+stratified sample of the power CDF ((i + rotation) / n) and its point and
+direction from the Halton sequence at index i (bases 2, 3, 5, 7, 11), each
+dimension shifted by a seeded rotation (Cranley-Patterson). The photon set
+is a function of (seed, i) only: the same for any thread count, and far
+less noisy than independent random photons.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .kernels.rng import rand01
+from .kernels.sampling import cosine_hemisphere, frame, sample_cdf, triangle_point
+from .kernels.traverse import STACK_SIZE, closest_hit, hit_normal
+from .kernels.voxelize import facing_of
+from .surfaces import LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT
+
+
+@njit(cache=True, inline="always")
+def radical_inverse(base, i):
+    inv = 1.0 / base
+    f = inv
+    r = 0.0
+    while i > 0:
+        r += f * (i % base)
+        i //= base
+        f *= inv
+    return r
+
+
+@njit(cache=True, inline="always")
+def _qmc(i, dim, base, rot):
+    v = radical_inverse(base, i) + rot[dim]
+    return v - math.floor(v)
+
+
+@njit(cache=True, parallel=True)
+def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, n, rot, eps, center, radius):
+    """Traces n photons. light_kind: -1 area emitters (light_ref unused),
+    else the punctual kind with light_ref the light index; light_power
+    (nl, 3) the power of each entry. Returns hit point (n, 3), side normal
+    (n, 3), power (n, 3) and ok (n,) (False: escaped or absorbed by a back)."""
+    point = np.zeros((n, 3))
+    side_n = np.zeros((n, 3))
+    power = np.zeros((n, 3))
+    ok = np.zeros(n, np.bool_)
+    total = light_cdf[-1]
+    corners, double, mat_of = surf[4], surf[3], surf[0]
+    chunk = 1024
+    for c in prange((n + chunk - 1) // chunk):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            u = (i + rot[0]) / n
+            u = u - math.floor(u)
+            li = sample_cdf(light_cdf, u)
+            p_sel = (light_cdf[li] - (light_cdf[li - 1] if li > 0 else 0.0)) / total
+            scale = 1.0 / (p_sel * n)
+            pr, pg, pb = light_power[li, 0] * scale, light_power[li, 1] * scale, light_power[li, 2] * scale
+            kind = light_kind[li]
+            if kind < 0:
+                # an area emitter triangle, chosen within the emitters by power
+                emitters, ecdf = surf[6], surf[7]
+                v = _qmc(i, 1, 2, rot)
+                k = sample_cdf(ecdf, v)
+                tri = emitters[k]
+                p_tri = (ecdf[k] - (ecdf[k - 1] if k > 0 else 0.0)) / ecdf[-1]
+                # photon power: this triangle's power pi L_e area (x2 sides) over its probability
+                em = surf[2][mat_of[tri]]
+                sides = 2.0 if double[mat_of[tri]] else 1.0
+                area = surf[5][tri]
+                f = math.pi * area * sides / (p_tri * p_sel * n)
+                pr, pg, pb = em[0] * f, em[1] * f, em[2] * f
+                b1, b2 = triangle_point(_qmc(i, 2, 3, rot), _qmc(i, 3, 5, rot))
+                b0 = 1.0 - b1 - b2
+                ox = b0 * corners[tri, 0, 0] + b1 * corners[tri, 1, 0] + b2 * corners[tri, 2, 0]
+                oy = b0 * corners[tri, 0, 1] + b1 * corners[tri, 1, 1] + b2 * corners[tri, 2, 1]
+                oz = b0 * corners[tri, 0, 2] + b1 * corners[tri, 1, 2] + b2 * corners[tri, 2, 2]
+                ax = corners[tri, 1, 0] - corners[tri, 0, 0]
+                ay = corners[tri, 1, 1] - corners[tri, 0, 1]
+                az = corners[tri, 1, 2] - corners[tri, 0, 2]
+                bx = corners[tri, 2, 0] - corners[tri, 0, 0]
+                by = corners[tri, 2, 1] - corners[tri, 0, 1]
+                bz = corners[tri, 2, 2] - corners[tri, 0, 2]
+                nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+                ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+                nx, ny, nz = nx / ln, ny / ln, nz / ln
+                if sides == 2.0 and _qmc(i, 6, 13, rot) >= 0.5:
+                    nx, ny, nz = -nx, -ny, -nz
+                dx, dy, dz, cos = cosine_hemisphere(_qmc(i, 4, 7, rot), _qmc(i, 5, 11, rot), nx, ny, nz)
+                ox, oy, oz = ox + eps * nx, oy + eps * ny, oz + eps * nz
+            else:
+                j = light_ref[li]
+                pos, ldir = surf[14], surf[15]
+                if kind == LIGHT_DIRECTIONAL:
+                    dx, dy, dz = ldir[j, 0], ldir[j, 1], ldir[j, 2]
+                    t, b = frame(dx, dy, dz)
+                    r = radius * math.sqrt(_qmc(i, 2, 3, rot))
+                    phi = 2.0 * math.pi * _qmc(i, 3, 5, rot)
+                    a1, a2 = r * math.cos(phi), r * math.sin(phi)
+                    ox = center[0] - 2.0 * radius * dx + a1 * t[0] + a2 * b[0]
+                    oy = center[1] - 2.0 * radius * dy + a1 * t[1] + a2 * b[1]
+                    oz = center[2] - 2.0 * radius * dz + a1 * t[2] + a2 * b[2]
+                else:
+                    ox, oy, oz = pos[j, 0], pos[j, 1], pos[j, 2]
+                    cmin = -1.0
+                    if kind == LIGHT_SPOT:
+                        cmin = surf[17][j, 1]
+                    ct = 1.0 - _qmc(i, 2, 3, rot) * (1.0 - cmin)
+                    st = math.sqrt(max(0.0, 1.0 - ct * ct))
+                    phi = 2.0 * math.pi * _qmc(i, 3, 5, rot)
+                    ax_, ay_, az_ = 0.0, 0.0, 1.0
+                    if kind == LIGHT_SPOT:
+                        ax_, ay_, az_ = ldir[j, 0], ldir[j, 1], ldir[j, 2]
+                        ci, co = surf[17][j, 0], surf[17][j, 1]
+                        a = min(max((ct - co) / max(ci - co, 1e-4), 0.0), 1.0)
+                        pr, pg, pb = pr * a * a, pg * a * a, pb * a * a
+                    t, b = frame(ax_, ay_, az_)
+                    lx, ly = st * math.cos(phi), st * math.sin(phi)
+                    dx = lx * t[0] + ly * b[0] + ct * ax_
+                    dy = lx * t[1] + ly * b[1] + ct * ay_
+                    dz = lx * t[2] + ly * b[2] + ct * az_
+            th, jh, uh, vh = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+            if jh < 0:
+                continue
+            tri_h = bvh[6][jh]
+            hx, hy, hz = hit_normal(bvh, jh)
+            if hx * dx + hy * dy + hz * dz > 0.0:
+                if not double[mat_of[tri_h]]:
+                    continue  # the back of a one-sided surface absorbs
+                hx, hy, hz = -hx, -hy, -hz
+            point[i, 0], point[i, 1], point[i, 2] = ox + th * dx, oy + th * dy, oz + th * dz
+            side_n[i, 0], side_n[i, 1], side_n[i, 2] = hx, hy, hz
+            power[i, 0], power[i, 1], power[i, 2] = pr, pg, pb
+            ok[i] = True
+    return point, side_n, power, ok
+
+
+@njit(cache=True, parallel=True)
+def find_voxels(points, side_n, ok, vkey, vfacing, vcentroid, vnormal, origin, h, dims):
+    """Voxel of each photon hit: the hit cell, the facing of the hit side,
+    the sheet whose plane is nearest. A hit on a cell boundary may round
+    into the neighbour cell: then the nearest matching voxel of the 27
+    cells around is taken. -1 where none matches."""
+    n = points.shape[0]
+    out = np.full(n, -1, np.int64)
+    for i in prange(n):
+        if not ok[i]:
+            continue
+        f = facing_of(side_n[i, 0], side_n[i, 1], side_n[i, 2])
+        c0 = int(math.floor((points[i, 0] - origin[0]) / h))
+        c1 = int(math.floor((points[i, 1] - origin[1]) / h))
+        c2 = int(math.floor((points[i, 2] - origin[2]) / h))
+        best, best_d = -1, np.inf
+        for ring in range(2):
+            for d0 in range(-ring, ring + 1):
+                for d1 in range(-ring, ring + 1):
+                    for d2 in range(-ring, ring + 1):
+                        if ring == 1 and d0 == 0 and d1 == 0 and d2 == 0:
+                            continue
+                        x, y, z = c0 + d0, c1 + d1, c2 + d2
+                        if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                            continue
+                        key = (np.int64(x) * dims[1] + y) * dims[2] + z
+                        lo = np.searchsorted(vkey, key)
+                        while lo < vkey.shape[0] and vkey[lo] == key:
+                            if vfacing[lo] == f:
+                                dd = 0.0
+                                for c in range(3):
+                                    dd += (points[i, c] - vcentroid[lo, c]) * vnormal[lo, c]
+                                dd = abs(dd)  # same cell: the nearest sheet's plane
+                                if ring == 1:  # neighbour cell: the nearest centroid
+                                    dd = 0.0
+                                    for c in range(3):
+                                        dd += (points[i, c] - vcentroid[lo, c]) ** 2
+                                if dd < best_d:
+                                    best, best_d = lo, dd
+                            lo += 1
+            if best >= 0:
+                break
+        out[i] = best
+    return out
+
+
+def light_table(scene, surfaces):
+    """The lights photons are drawn from: area emitters (one entry) and each
+    punctual light, with power (W, RGB) and sampling weight (their sum)."""
+    kinds, refs, powers = [], [], []
+    if surfaces.n_emitters:
+        kinds.append(-1)
+        refs.append(-1)
+        powers.append(surfaces.emitted_power)
+    lo, hi = scene.bounds()
+    radius = float(np.linalg.norm(hi - lo)) / 2 or 1.0
+    for j, light in enumerate(scene.lights):
+        i = np.asarray(light.intensity, np.float64)
+        if light.kind == "point":
+            p = 4 * np.pi * i
+        elif light.kind == "spot":
+            p = 2 * np.pi * (1 - np.cos(light.outer_cone)) * i  # falloff applied per photon
+        else:
+            p = np.pi * radius * radius * i
+        kinds.append({"point": LIGHT_POINT, "spot": LIGHT_SPOT, "directional": LIGHT_DIRECTIONAL}[light.kind])
+        refs.append(j)
+        powers.append(p)
+    powers = np.array(powers, np.float64).reshape(-1, 3)
+    return np.array(kinds, np.int32), np.array(refs, np.int32), powers, (lo + hi) / 2, radius
+
+
+def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0):
+    """Returns (deposited power (nv, 3), photon-weighted centroid sums (nv, 3),
+    photons landed, emitted power (3,))."""
+    kinds, refs, powers, center, radius = light_table(scene, surfaces)
+    nv = len(voxels)
+    if len(kinds) == 0 or n == 0 or powers.sum() <= 0:
+        return np.zeros((nv, 3)), np.zeros((nv, 3)), 0, np.zeros(3)
+    cdf = np.cumsum(powers.sum(axis=1))
+    rot = np.array([rand01(seed, 0x5EED, d) for d in range(8)])
+    eps = 1e-7 * float(np.abs(scene.vertices).max() or 1.0)
+    pts, sn, pw, ok = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, int(n), rot, eps, center, radius)
+    vi = find_voxels(pts, sn, ok, voxels.key, voxels.facing, voxels.centroid, voxels.normal, voxels.origin,
+                     voxels.cell_size, voxels.dims)
+    good = vi >= 0
+    dep = np.stack([np.bincount(vi[good], weights=pw[good, c], minlength=nv) for c in range(3)], axis=1)
+    lum = pw[good].sum(axis=1)
+    cen = np.stack([np.bincount(vi[good], weights=pts[good, c] * lum, minlength=nv) for c in range(3)], axis=1)
+    return dep, cen, int(good.sum()), powers.sum(axis=0)

@@ -1,0 +1,79 @@
+"""Linear propagation of radiosity over a voxel set (METHOD.md section 4).
+
+`LineSweeper` precomputes what every bounce reuses (the three axis-major
+orders, the cell boundaries in each, the table size); `gather` runs one
+bounce over a direction set:
+
+    H(x) = (1 / S(n_x)) sum_{s in D, n_x.s > 0} (B(I(x, s)) / pi) (n_x.s) dW(s)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .directions import DirectionSet
+from .kernels.propagate import propagate_families
+from .kernels.rng import rand01
+
+TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
+KAPPA = 1.0   # convex-edge reach, in cells
+
+
+class LineSweeper:
+    def __init__(self, voxels):
+        cell = np.ascontiguousarray(voxels.cell)
+        n = len(cell)
+        self.n = n
+        self.cell = cell
+        self.centroid = np.ascontiguousarray(voxels.centroid, np.float64)
+        self.normal = np.ascontiguousarray(voxels.normal, np.float64)
+        self.h = float(voxels.cell_size)
+        # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
+        new = np.ones(n, bool)
+        new[1:] = np.any(cell[1:] != cell[:-1], axis=1)
+        group = np.cumsum(new) - 1
+        ng = int(group[-1]) + 1 if n else 0
+        orders = np.empty((3, n), np.int64)
+        starts = np.empty((3, ng + 1), np.int64)
+        orders[0] = np.arange(n)
+        for k in (1, 2):
+            k1, k2 = (k + 1) % 3, (k + 2) % 3
+            orders[k] = np.lexsort((np.arange(n), cell[:, k2], cell[:, k1], cell[:, k]))
+        for k in range(3):
+            g = group[orders[k]]
+            b = np.ones(n, bool)
+            b[1:] = g[1:] != g[:-1]
+            starts[k, :ng] = np.nonzero(b)[0]
+            starts[k, ng] = n
+        self.orders, self.starts = orders, starts
+        self.max_group = int(np.diff(starts[0]).max()) if ng else 1
+        self.cell_lo = cell.min(axis=0).astype(np.int64) if n else np.zeros(3, np.int64)
+        self.cell_hi = cell.max(axis=0).astype(np.int64) if n else np.zeros(3, np.int64)
+        self.table_size = 1 << max(10, int(np.ceil(np.log2(max(4 * ng, 2)))))
+
+    @property
+    def nbytes(self) -> int:
+        """Working memory of a bounce beyond the voxel arrays."""
+        per_voxel = 2 * (8 + 8)  # linked list + cos weight, per sweep
+        return self.orders.nbytes + self.starts.nbytes + 3 * 2 * 8 * self.table_size + self.n * (per_voxel + 24 + 8)
+
+    def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
+        """Seeded line offsets (mu, mu') in [0, A) per family, so that the
+        discretization error of successive bounces does not line up."""
+        a = dirs.vectors[np.arange(dirs.n_families), dirs.axis].astype(np.int64)
+        out = np.empty((dirs.n_families, 2), np.int64)
+        for f in range(dirs.n_families):
+            for j in range(2):
+                out[f, j] = int(rand01(seed, bounce * 1_000_003 + f, 7 + j) * a[f]) % a[f]
+        return out
+
+    def gather(self, radiosity, dirs: DirectionSet, offsets):
+        """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
+        quadrature's cosine integral per voxel."""
+        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.centroid,
+                                  self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
+                                  dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, self.h, TAU, KAPPA,
+                                  self.max_group, self.table_size)
+
+    def irradiance(self, radiosity, dirs: DirectionSet, offsets):
+        g, s = self.gather(radiosity, dirs, offsets)
+        return np.where(s[:, None] > 0, g / np.where(s > 0, s, 1.0)[:, None], 0.0)

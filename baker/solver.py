@@ -1,0 +1,133 @@
+"""The cache method (METHOD.md section 5): photons -> bounces -> solution.
+
+    current = B_1 = rho H_1;  H = H_1
+    for k = 2, 3, ...:  H_k = propagate(current, D_{r_k});  H += H_k;  current = rho H_k
+    stop when power(current) < tolerance * power(B_1), or at the bounce cap.
+
+Only the newly arrived light is propagated, with about half the directions
+of the previous bounce; emitters' own E is never propagated (the photons
+carried it). B_ind = rho H is the light that bounced at least once; the
+outgoing radiosity is B = E + rho H.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import bvh as bvh_mod
+from . import surfaces as surf_mod
+from .config import SolverConfig
+from .directions import direction_set
+from .photons import shoot_photons
+from .propagate import LineSweeper
+from .stats import Stats, peak_rss_mb
+from .voxels import Voxels, voxelize
+
+
+@dataclass(frozen=True)
+class Solution:
+    """voxels; irradiance H (n, 3) (all bounces that arrived, float64);
+    radiosity B = E + rho H (n, 3); photon_power (n, 3) deposited by the
+    first bounce and photon_centroid (n, 3) (power-weighted, the area
+    centroid where no photon landed); bounce_power the power of each
+    bounce's newly arrived radiosity; radii per propagated bounce; info."""
+    voxels: Voxels
+    irradiance: np.ndarray
+    radiosity: np.ndarray
+    photon_power: np.ndarray
+    photon_centroid: np.ndarray
+    bounce_power: list
+    radii: list
+    stop_reason: str
+    info: dict = field(default_factory=dict)
+
+    @property
+    def bounces(self) -> int:
+        """Bounces computed, the photon bounce included."""
+        return len(self.bounce_power)
+
+    @property
+    def radiance(self) -> np.ndarray:
+        """Outgoing radiance B / pi (n, 3)."""
+        return self.radiosity / np.pi
+
+    def summary(self) -> str:
+        i = self.info
+        return (f"voxels {len(self.voxels)} (cell {self.voxels.cell_size:.4g})  photons {i.get('photons', 0)} "
+                f"({i.get('photons_landed', 0)} landed)  bounces {self.bounces} (stopped: {self.stop_reason})  "
+                f"directions/bounce {[24 * r * r + 2 for r in self.radii]}  "
+                f"discrete rays {i.get('discrete_rays', 0):.4g}")
+
+
+def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, surfaces=None, progress=False,
+          keep_bounces=False) -> Solution:
+    """Scene -> Solution by photons and linear propagation (the cache method)."""
+    import numba
+    if config.threads:
+        numba.set_num_threads(max(1, min(config.threads, numba.config.NUMBA_NUM_THREADS)))
+    stats = stats or Stats("solve")
+    with stats.stage("bvh"):
+        bvh = bvh or bvh_mod.build_scene_bvh(scene)
+        surfaces = surfaces or surf_mod.pack(scene)
+    with stats.stage("voxelize"):
+        vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surfaces)
+    n = len(vox)
+    with stats.stage("photons"):
+        dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed)
+    area = vox.area[:, None]
+    h1 = dep / area
+    lum = dep.sum(axis=1)
+    centroid = np.where(lum[:, None] > 0, pcen / np.where(lum > 0, lum, 1.0)[:, None], vox.centroid)
+    total = h1.copy()
+    current = vox.albedo * h1
+    p1 = float((current * area).sum())
+    bounce_power = [p1]
+    history = [h1] if keep_bounces else None
+    radii_used = []
+    rays = 0
+    stop = "no light reached a surface" if p1 <= 0 else f"bounce cap ({config.max_bounces})"
+    if p1 > 0 and config.max_bounces > 1:
+        with stats.stage("propagation"):
+            sweeper = LineSweeper(vox)
+            stop_mem = peak_rss_mb()
+            cache = {}
+            radii = config.radii()
+            bar = None
+            if progress:
+                from tqdm import tqdm
+                bar = tqdm(total=len(radii), desc="bounces", unit="bounce", leave=False, file=sys.stderr,
+                           disable=None)
+            for k, r in enumerate(radii, start=2):
+                dirs = cache.get(r) or cache.setdefault(r, direction_set(r))
+                hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k))
+                rays += n * dirs.n_directions
+                radii_used.append(r)
+                total += hk
+                current = vox.albedo * hk
+                pk = float((current * area).sum())
+                bounce_power.append(pk)
+                if keep_bounces:
+                    history.append(hk)
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(new=f"{pk / p1:.2e}")
+                if pk <= config.tolerance * p1:
+                    stop = f"tolerance ({pk / p1:.2e} <= {config.tolerance:g} of the first bounce)"
+                    break
+            if bar is not None:
+                bar.close()
+            del stop_mem
+    elif p1 > 0:
+        stop = "bounce cap (1)"
+    radiosity = vox.emission + vox.albedo * total
+    info = {"photons": int(config.photons), "photons_landed": landed, "emitted_power": emitted.tolist(),
+            "discrete_rays": int(rays), "voxels": n, "cell_size": vox.cell_size,
+            "directions_per_bounce": [24 * r * r + 2 for r in radii_used], "bounces": len(bounce_power),
+            "stop_reason": stop, "voxel_bytes": vox.nbytes}
+    if keep_bounces:
+        info["history"] = history
+    stats.count(**{k: v for k, v in info.items() if k != "history"})
+    return Solution(vox, total, radiosity, dep, centroid, bounce_power, radii_used, stop, info)
