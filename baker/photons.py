@@ -23,7 +23,7 @@ from numba import njit, prange
 from .kernels.rng import rand01
 from .kernels.sampling import cosine_hemisphere, frame, sample_cdf, triangle_point
 from .kernels.traverse import STACK_SIZE, closest_hit, hit_normal
-from .kernels.voxelize import facing_of
+from .kernels.lookup import voxel_of_hit
 from .surfaces import LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT
 
 
@@ -55,6 +55,8 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, n, rot, eps,
     side_n = np.zeros((n, 3))
     power = np.zeros((n, 3))
     ok = np.zeros(n, np.bool_)
+    hit_tri = np.full(n, -1, np.int32)
+    hit_back = np.zeros(n, np.bool_)
     total = light_cdf[-1]
     corners, double, mat_of = surf[4], surf[3], surf[0]
     chunk = 1024
@@ -139,56 +141,24 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, n, rot, eps,
                 if not double[mat_of[tri_h]]:
                     continue  # the back of a one-sided surface absorbs
                 hx, hy, hz = -hx, -hy, -hz
+                hit_back[i] = True
+            hit_tri[i] = tri_h
             point[i, 0], point[i, 1], point[i, 2] = ox + th * dx, oy + th * dy, oz + th * dz
             side_n[i, 0], side_n[i, 1], side_n[i, 2] = hx, hy, hz
             power[i, 0], power[i, 1], power[i, 2] = pr, pg, pb
             ok[i] = True
-    return point, side_n, power, ok
+    return point, side_n, power, ok, hit_tri, hit_back
 
 
 @njit(cache=True, parallel=True)
-def find_voxels(points, side_n, ok, vkey, vfacing, vcentroid, vnormal, origin, h, dims):
-    """Voxel of each photon hit: the hit cell, the facing of the hit side,
-    the sheet whose plane is nearest. A hit on a cell boundary may round
-    into the neighbour cell: then the nearest matching voxel of the 27
-    cells around is taken. -1 where none matches."""
+def find_voxels(points, ok, hit_tri, hit_back, piece_key, piece_voxel, side_start, back_side, origin, h, dims):
+    """Voxel of each photon hit (the piece of the side it hit), -1 if none."""
     n = points.shape[0]
     out = np.full(n, -1, np.int64)
     for i in prange(n):
-        if not ok[i]:
-            continue
-        f = facing_of(side_n[i, 0], side_n[i, 1], side_n[i, 2])
-        c0 = int(math.floor((points[i, 0] - origin[0]) / h))
-        c1 = int(math.floor((points[i, 1] - origin[1]) / h))
-        c2 = int(math.floor((points[i, 2] - origin[2]) / h))
-        best, best_d = -1, np.inf
-        for ring in range(2):
-            for d0 in range(-ring, ring + 1):
-                for d1 in range(-ring, ring + 1):
-                    for d2 in range(-ring, ring + 1):
-                        if ring == 1 and d0 == 0 and d1 == 0 and d2 == 0:
-                            continue
-                        x, y, z = c0 + d0, c1 + d1, c2 + d2
-                        if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
-                            continue
-                        key = (np.int64(x) * dims[1] + y) * dims[2] + z
-                        lo = np.searchsorted(vkey, key)
-                        while lo < vkey.shape[0] and vkey[lo] == key:
-                            if vfacing[lo] == f:
-                                dd = 0.0
-                                for c in range(3):
-                                    dd += (points[i, c] - vcentroid[lo, c]) * vnormal[lo, c]
-                                dd = abs(dd)  # same cell: the nearest sheet's plane
-                                if ring == 1:  # neighbour cell: the nearest centroid
-                                    dd = 0.0
-                                    for c in range(3):
-                                        dd += (points[i, c] - vcentroid[lo, c]) ** 2
-                                if dd < best_d:
-                                    best, best_d = lo, dd
-                            lo += 1
-            if best >= 0:
-                break
-        out[i] = best
+        if ok[i]:
+            out[i] = voxel_of_hit(hit_tri[i], hit_back[i], points[i, 0], points[i, 1], points[i, 2], piece_key,
+                                  piece_voxel, side_start, back_side, origin, h, dims)
     return out
 
 
@@ -227,9 +197,10 @@ def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0):
     cdf = np.cumsum(powers.sum(axis=1))
     rot = np.array([rand01(seed, 0x5EED, d) for d in range(8)])
     eps = 1e-7 * float(np.abs(scene.vertices).max() or 1.0)
-    pts, sn, pw, ok = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, int(n), rot, eps, center, radius)
-    vi = find_voxels(pts, sn, ok, voxels.key, voxels.facing, voxels.centroid, voxels.normal, voxels.origin,
-                     voxels.cell_size, voxels.dims)
+    pts, sn, pw, ok, tri, back = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, int(n), rot, eps,
+                                       center, radius)
+    vi = find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.side_start, voxels.back_side,
+                     voxels.origin, voxels.cell_size, voxels.dims)
     good = vi >= 0
     dep = np.stack([np.bincount(vi[good], weights=pw[good, c], minlength=nv) for c in range(3)], axis=1)
     lum = pw[good].sum(axis=1)

@@ -27,6 +27,7 @@ class LineSweeper:
         self.centroid = np.ascontiguousarray(voxels.centroid, np.float64)
         self.normal = np.ascontiguousarray(voxels.normal, np.float64)
         self.h = float(voxels.cell_size)
+        self.origin = np.ascontiguousarray(voxels.origin, np.float64)
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
         new = np.ones(n, bool)
         new[1:] = np.any(cell[1:] != cell[:-1], axis=1)
@@ -69,7 +70,7 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.centroid,
+        return propagate_families(self.orders, self.starts, self.cell, self.origin, self.cell_lo, self.cell_hi, self.centroid,
                                   self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, self.h, TAU, KAPPA,
                                   self.max_group, self.table_size)

@@ -62,6 +62,25 @@ class Solution:
                 f"discrete rays {i.get('discrete_rays', 0):.4g}")
 
 
+MIN_POOL_AREA = 0.25  # in cells^2: smaller voxels pool their photons with a neighbour
+
+
+def first_bounce_irradiance(vox, deposited):
+    """H_1 = deposited power / area (n, 3); a voxel under a quarter cell
+    takes the pooled estimate (P + P_parent) / (A + A_parent) of itself and
+    its largest neighbour on the same surface (photon noise scales as
+    1 / sqrt(area): slivers would be spikes)."""
+    from .kernels.lookup import pool_parents
+    h1 = deposited / vox.area[:, None]
+    parent = pool_parents(vox.key, vox.facing, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
+                          vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2)
+    tiny = np.nonzero(parent >= 0)[0]
+    if len(tiny):
+        p = parent[tiny]
+        h1[tiny] = (deposited[tiny] + deposited[p]) / (vox.area[tiny] + vox.area[p])[:, None]
+    return h1
+
+
 def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, surfaces=None, progress=False,
           keep_bounces=False) -> Solution:
     """Scene -> Solution by photons and linear propagation (the cache method)."""
@@ -78,7 +97,7 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
     with stats.stage("photons"):
         dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed)
     area = vox.area[:, None]
-    h1 = dep / area
+    h1 = first_bounce_irradiance(vox, dep)
     lum = dep.sum(axis=1)
     centroid = np.where(lum[:, None] > 0, pcen / np.where(lum > 0, lum, 1.0)[:, None], vox.centroid)
     total = h1.copy()

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import BudgetError
-from .kernels.voxelize import clip_pieces, count_candidates, merge_sheets, textured_albedo
+from .kernels.voxelize import clip_pieces, count_candidates, merge_sheets, side_signatures, textured_albedo
 
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
 MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
@@ -48,6 +48,10 @@ class Voxels:
     albedo: np.ndarray
     emission: np.ndarray
     material: np.ndarray
+    piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
+    piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
+    side_start: np.ndarray    # (ns + 1,) pieces of side s are side_start[s] .. side_start[s+1] - 1
+    back_side: np.ndarray     # (nt,) int32 side index of a triangle's back (-1: one-sided)
 
     def __len__(self):
         return len(self.area)
@@ -55,7 +59,8 @@ class Voxels:
     @property
     def nbytes(self) -> int:
         return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
-                                                     "albedo", "emission", "material"))
+                                                     "albedo", "emission", "material", "piece_key",
+                                                     "piece_voxel", "side_start", "back_side"))
 
     def lookup(self, cell_key, facing):
         """Voxel index range [lo, hi) of (cell key, facing); empty if none."""
@@ -128,8 +133,10 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     axis = np.argmax(np.abs(p_nrm), axis=1)
     facing = (2 * axis + (p_nrm[np.arange(len(axis)), axis] < 0)).astype(np.int8)
     along = p_cen[np.arange(len(axis)), axis] / p_area
-    order = np.lexsort((along, facing, key))
-    vox_of = merge_sheets(order, key, facing, along, p_area, p_cen, p_nrm, SHEET_GAP)
+    by_cell = np.argsort(key, kind="stable")
+    sig = side_signatures(by_cell, key, facing, p_area, p_cen, p_nrm, SHEET_GAP)
+    order = np.lexsort((along, sig, facing, key))
+    vox_of = merge_sheets(order, key, facing, sig, along, p_area, p_cen, p_nrm, SHEET_GAP)
     n = int(vox_of[-1]) + 1 if len(vox_of) else 0
     # per-voxel sums in sorted piece order (deterministic)
     tri = sides_tri[p_side]
@@ -163,7 +170,18 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     cell = p_cell[order][starts]
     nl = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0)
+    # (side, cell) -> voxel: where a photon or a camera ray that hit a
+    # triangle's side in a cell lands, exactly, whatever the sheets and splits
+    side_sorted = p_side[order]
+    key_sorted = key[order]
+    by_side = np.lexsort((key_sorted, side_sorted))
+    ns = len(sides_tri)
+    side_start = np.searchsorted(side_sorted[by_side], np.arange(ns + 1)).astype(np.int64)
+    back_side = np.full(len(scene.triangles), -1, np.int32)
+    nt = len(scene.triangles)
+    back_side[sides_tri[nt:]] = np.arange(nt, ns, dtype=np.int32)
     return Voxels(origin=origin, cell_size=h, dims=dims, cell=cell.astype(np.int32),
                   facing=facing[order][starts], key=key[order][starts], area=area * h * h,
                   normal=nrm, centroid=origin + cen / area[:, None] * h, albedo=alb / area[:, None],
-                  emission=em / area[:, None], material=material)
+                  emission=em / area[:, None], material=material, piece_key=key_sorted[by_side],
+                  piece_voxel=vox_of[by_side].astype(np.int64), side_start=side_start, back_side=back_side)

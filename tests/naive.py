@@ -45,3 +45,73 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
         return sa * sb * rectangle_form_factor(abs(a), abs(b), h)
     f = corner(x1 - px, z1 - pz) - corner(x0 - px, z1 - pz) - corner(x1 - px, z0 - pz) + corner(x0 - px, z0 - pz)
     return L * np.pi * f
+
+
+def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
+                    kappa=1.0, trace=None):
+    """Plain-Python linear propagation with the visibility rule of METHOD.md
+    section 4: builds every digital line of every family explicitly (dict of
+    line id -> voxels), orders each line's voxels by (X, position along s,
+    +1 before -1) and runs the waiting-list rule along s and -s.
+    Returns (gathered (n, 3), S (n,)); with trace=x, also the list of
+    (family, sign, source voxel) voxel x gathered from."""
+    n = len(cell)
+    gathered = np.zeros((n, 3))
+    quad = np.zeros(n)
+    sources = []
+    for f in range(len(vectors)):
+        k = int(axes[f])
+        k1, k2 = (k + 1) % 3, (k + 2) % 3
+        A, B, C = int(vectors[f][k]), int(vectors[f][k1]), int(vectors[f][k2])
+        mu, mu2 = int(offsets[f][0]), int(offsets[f][1])
+        lines = {}
+        for v in range(n):
+            X, Y, Z = int(cell[v][k]), int(cell[v][k1]), int(cell[v][k2])
+            lines.setdefault(((C * X - A * Z - mu) // A, (B * X - A * Y - mu2) // A), []).append(v)
+        for sign in (1, -1):
+            u = units[f] * sign
+            for members in lines.values():
+                def order_key(v):
+                    o = float(normal[v] @ u)
+                    return (sign * int(cell[v][k]), float(centroid[v] @ u), 0 if o > 0 else 1)
+                def hidden_by(q, x, y):
+                    sx = (centroid[x] - centroid[q]) @ normal[q]
+                    sy = (centroid[y] - centroid[q]) @ normal[q]
+                    if not ((sx > tau * h and sy < -tau * h) or (sx < -tau * h and sy > tau * h)):
+                        return False
+                    p = centroid[x] + (centroid[y] - centroid[x]) * (sx / (sx - sy))
+                    lo = origin + cell[y] * h
+                    inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
+                    return inside and ((p - centroid[y]) @ normal[y]) * ((centroid[q] - centroid[y]) @ normal[y]) > 0
+                waiting, last = [], None
+                for y in sorted(members, key=order_key):
+                    o = float(normal[y] @ u)
+                    if o == 0.0:
+                        continue
+                    if o < 0:
+                        keep = []
+                        for x in waiting:
+                            if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h:
+                                between = any(hidden_by(q, x, y) for q in members
+                                              if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
+                                if not between:
+                                    gathered[x] += radiosity[y] * float(normal[x] @ u) * weights[f]
+                                    if x == trace:
+                                        sources.append((f, sign, y))
+                            else:
+                                keep.append(x)
+                        waiting = keep
+                    else:
+                        def convex(z):
+                            dz = (centroid[z] - centroid[y]) @ normal[y]
+                            ez = (centroid[y] - centroid[z]) @ normal[z]
+                            return dz < 0 and ez < 0 and dz >= -kappa * h
+                        edge_last = last is not None and convex(last)
+                        waiting = [x for x in waiting if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h
+                                   or edge_last or convex(x)]
+                        quad[y] += o * weights[f]
+                        waiting.append(y)
+                        last = y
+    if trace is not None:
+        return gathered, quad, sources
+    return gathered, quad

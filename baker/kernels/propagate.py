@@ -17,6 +17,9 @@ against every waiting x with d_x = (c_x - c_y).n_y:
   y turns its back (n_y.s > 0): x with d_x < -tau h is blocked (gathers 0,
     leaves) unless x or the last added voxel z forms a convex edge with y
     (d_z < 0, (c_y - c_z).n_z < 0, d_z >= -kappa h); then y joins the list.
+y is hidden from x when another voxel q of y's cell has its plane between
+them and the segment x -> y crosses it inside that cell (a wall standing
+mid-cell on a floor).
 Gathering writes only the gathering voxel, and a voxel gathers along s or
 -s, never both: the two sweeps of a family run in parallel, and families
 run in a fixed order, so the result is identical for any thread count.
@@ -60,8 +63,44 @@ def _slot(p, q, dense, pmin, qmin, Q, hkeys, mask):
         s = (s + 1) & mask
 
 
+@njit(cache=True, inline="always")
+def _separated(x, y, buf, m, centroid, normal, tau_h, lo0, lo1, lo2, h):
+    """Is y hidden from x by another voxel q of y's cell? True when q's plane
+    lies between them (beyond tau h on each side), the segment from x's
+    centroid to y's crosses that plane within half a cell of y's cell (the
+    26-connected line may step past the cell where it crosses), on the
+    side of y's plane where q's piece is: a surface crossing the cell (a
+    wall standing on a floor) is in the way."""
+    for i in range(m):
+        e = buf[i]
+        q = e if e >= 0 else -e - 1
+        if q == x or q == y:
+            continue
+        sx = sy = 0.0
+        for c in range(3):
+            sx += (centroid[x, c] - centroid[q, c]) * normal[q, c]
+            sy += (centroid[y, c] - centroid[q, c]) * normal[q, c]
+        if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
+            lam = sx / (sx - sy)
+            px = centroid[x, 0] + (centroid[y, 0] - centroid[x, 0]) * lam
+            py = centroid[x, 1] + (centroid[y, 1] - centroid[x, 1]) * lam
+            pz = centroid[x, 2] + (centroid[y, 2] - centroid[x, 2]) * lam
+            if lo0 - 0.5 * h <= px <= lo0 + h + 0.5 * h and lo1 - 0.5 * h <= py <= lo1 + h + 0.5 * h and \
+                    lo2 - 0.5 * h <= pz <= lo2 + h + 0.5 * h:
+                # q's piece stands where the segment crosses: on the same side
+                # of y's plane as q (a wall rising from a floor), not behind it
+                # (the side of a box under its top: a convex edge)
+                pside = (px - centroid[y, 0]) * normal[y, 0] + (py - centroid[y, 1]) * normal[y, 1] + \
+                    (pz - centroid[y, 2]) * normal[y, 2]
+                qside = (centroid[q, 0] - centroid[y, 0]) * normal[y, 0] + (centroid[q, 1] - centroid[y, 1]) * \
+                    normal[y, 1] + (centroid[q, 2] - centroid[y, 2]) * normal[y, 2]
+                if pside * qside > 0.0:
+                    return True
+    return False
+
+
 @njit(cache=True)
-def _sweep(order, starts, cell, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
+def _sweep(order, starts, cell, origin, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
            ux, uy, uz, weight, forward, h, tau, kappa, dense, pmin, qmin, Q, head, last, hkeys, mask, nxt,
            cosw, touched, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s)."""
@@ -76,6 +115,9 @@ def _sweep(order, starts, cell, centroid, normal, radiosity, gathered, quad, k, 
         a, b = starts[g], starts[g + 1]
         v0 = order[a]
         X, Y, Z = np.int64(cell[v0, k]), np.int64(cell[v0, k1]), np.int64(cell[v0, k2])
+        lo0 = origin[0] + cell[v0, 0] * h
+        lo1 = origin[1] + cell[v0, 1] * h
+        lo2 = origin[2] + cell[v0, 2] * h
         p = (C * X - A * Z - mu) // A
         q = (B * X - A * Y - mu2) // A
         s = _slot(p, q, dense, pmin, qmin, Q, hkeys, mask)
@@ -113,10 +155,11 @@ def _sweep(order, starts, cell, centroid, normal, radiosity, gathered, quad, k, 
                     nx_ = nxt[x]
                     d = (centroid[x, 0] - cy0) * ny0 + (centroid[x, 1] - cy1) * ny1 + (centroid[x, 2] - cy2) * ny2
                     if d >= -tau_h:
-                        w = cosw[x]
-                        gathered[x, 0] += radiosity[y, 0] * w
-                        gathered[x, 1] += radiosity[y, 1] * w
-                        gathered[x, 2] += radiosity[y, 2] * w
+                        if m == 1 or not _separated(x, y, buf, m, centroid, normal, tau_h, lo0, lo1, lo2, h):
+                            w = cosw[x]
+                            gathered[x, 0] += radiosity[y, 0] * w
+                            gathered[x, 1] += radiosity[y, 1] * w
+                            gathered[x, 2] += radiosity[y, 2] * w
                         if prev == EMPTY:
                             head[s] = nx_
                         else:
@@ -169,7 +212,7 @@ def _sweep(order, starts, cell, centroid, normal, radiosity, gathered, quad, k, 
 
 
 @njit(cache=True, parallel=True)
-def propagate_families(orders, starts, cell, cell_lo, cell_hi, centroid, normal, radiosity, vectors, axes, units,
+def propagate_families(orders, starts, cell, origin, cell_lo, cell_hi, centroid, normal, radiosity, vectors, axes, units,
                        weights, offsets, h, tau, kappa, max_group, table_size):
     """Gathers radiosity over every family of a direction set.
 
@@ -207,7 +250,7 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, centroid, normal,
         order = orders[k]
         st = starts[k]
         for sweep in prange(2):
-            _sweep(order, st, cell, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
+            _sweep(order, st, cell, origin, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
                    units[f, 0], units[f, 1], units[f, 2], weights[f], sweep == 0, h, tau, kappa, dense, pmin, qmin,
                    Q, heads[sweep], lasts[sweep], hkeys[sweep], mask, nxts[sweep], cosws[sweep], toucheds[sweep],
                    bufs[sweep], bkeys[sweep])

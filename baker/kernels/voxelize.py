@@ -10,6 +10,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..surfaces import albedo_at
+
 MAX_POLY = 16
 
 
@@ -202,10 +204,10 @@ def facing_of(nx, ny, nz):
 
 
 @njit(cache=True)
-def merge_sheets(order, key, facing, along, area, centroid, normal, sheet_gap):
-    """Walks pieces sorted by (cell key, facing, position along the facing
-    axis) and assigns each to a voxel: a new voxel starts at a new (cell,
-    facing) or when the piece's centroid is more than sheet_gap (grid units)
+def merge_sheets(order, key, facing, sig, along, area, centroid, normal, sheet_gap):
+    """Walks pieces sorted by (cell key, facing, side signature, position
+    along the facing axis) and assigns each to a voxel: a new voxel starts
+    at a new (cell, facing, signature) or when the piece's centroid is more than sheet_gap (grid units)
     off the current sheet's plane. Returns voxel id per sorted piece."""
     n = order.shape[0]
     vox = np.empty(n, np.int64)
@@ -215,7 +217,8 @@ def merge_sheets(order, key, facing, along, area, centroid, normal, sheet_gap):
     sn = np.zeros(3)
     for i in range(n):
         p = order[i]
-        new = i == 0 or key[p] != key[order[i - 1]] or facing[p] != facing[order[i - 1]]
+        q = order[i - 1] if i > 0 else p
+        new = i == 0 or key[p] != key[q] or facing[p] != facing[q] or sig[p] != sig[q]
         if not new:
             # distance of this piece's centroid from the sheet's mean plane
             ln = math.sqrt(sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2])
@@ -240,10 +243,11 @@ def merge_sheets(order, key, facing, along, area, centroid, normal, sheet_gap):
 @njit(cache=True, parallel=True)
 def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
     """Albedo of each piece averaged over the piece (METHOD.md section 2:
-    texture-aware, not one sample): a samples x samples grid over the cell's
-    face across the triangle's dominant axis, projected on the triangle's
-    plane, keeping the points inside both the triangle and the cell."""
-    from baker.surfaces import albedo_at
+    texture-aware, not one sample): samples^2 points of the R2 low-
+    discrepancy sequence (Roberts 2018; a regular grid aliases with regular
+    textures) over the cell's face across the triangle's dominant axis,
+    projected on the triangle's plane, keeping the points inside both the
+    triangle and the cell."""
     n = piece_tri.shape[0]
     out = np.zeros((n, 3))
     for p in prange(n):
@@ -261,27 +265,64 @@ def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
         det = a11 * a22 - a12 * a21
         sr = sg = sb = 0.0
         cnt = 0
-        for si in range(samples):
-            for sj in range(samples):
-                q = np.empty(3)
-                q[ia] = origin[ia] + (piece_cell[p, ia] + (si + 0.5) / samples) * h
-                q[ja] = origin[ja] + (piece_cell[p, ja] + (sj + 0.5) / samples) * h
-                q[k] = (d - nrm[ia] * q[ia] - nrm[ja] * q[ja]) / nrm[k]
-                ck = (q[k] - origin[k]) / h - piece_cell[p, k]
-                if ck < 0.0 or ck > 1.0:
-                    continue
-                ri, rj = q[ia] - v0[ia], q[ja] - v0[ja]
-                b1 = (ri * a22 - rj * a12) / det
-                b2 = (a11 * rj - a21 * ri) / det
-                if b1 < 0.0 or b2 < 0.0 or b1 + b2 > 1.0:
-                    continue
-                r, g, b = albedo_at(surf, t, b1, b2)
-                sr += r
-                sg += g
-                sb += b
-                cnt += 1
+        for si in range(samples * samples):
+            ra = 0.5 + si * 0.7548776662466927
+            rb = 0.5 + si * 0.5698402909980532
+            ra -= math.floor(ra)
+            rb -= math.floor(rb)
+            q = np.empty(3)
+            q[ia] = origin[ia] + (piece_cell[p, ia] + ra) * h
+            q[ja] = origin[ja] + (piece_cell[p, ja] + rb) * h
+            q[k] = (d - nrm[ia] * q[ia] - nrm[ja] * q[ja]) / nrm[k]
+            ck = (q[k] - origin[k]) / h - piece_cell[p, k]
+            if ck < 0.0 or ck > 1.0:
+                continue
+            ri, rj = q[ia] - v0[ia], q[ja] - v0[ja]
+            b1 = (ri * a22 - rj * a12) / det
+            b2 = (a11 * rj - a21 * ri) / det
+            if b1 < 0.0 or b2 < 0.0 or b1 + b2 > 1.0:
+                continue
+            r, g, b = albedo_at(surf, t, b1, b2)
+            sr += r
+            sg += g
+            sb += b
+            cnt += 1
         if cnt == 0:  # a sliver between the sample points: the triangle's centre
             r, g, b = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
             sr, sg, sb, cnt = r, g, b, 1
         out[p, 0], out[p, 1], out[p, 2] = sr / cnt, sg / cnt, sb / cnt
     return out
+
+
+@njit(cache=True)
+def side_signatures(order, key, facing, area, centroid, normal, tol):
+    """For pieces sorted by cell key (order), a signature per piece: bit i
+    set when the piece lies in front of (beyond tol, grid units) the plane
+    of the i-th piece of another facing in the same cell. Pieces of one
+    facing with different signatures are cut apart by another surface
+    crossing the cell (a wall standing on two floors) and must not merge
+    (METHOD.md section 4, straddling voxels). Cells with more than 63
+    pieces keep signature 0 for the excess planes."""
+    n = order.shape[0]
+    sig = np.zeros(n, np.int64)
+    a = 0
+    while a < n:
+        b = a + 1
+        while b < n and key[order[b]] == key[order[a]]:
+            b += 1
+        if b - a > 1:
+            for i in range(a, b):
+                p = order[i]
+                s = np.int64(0)
+                for j in range(a, min(b, a + 63)):
+                    q = order[j]
+                    if facing[q] == facing[p]:
+                        continue
+                    d = 0.0
+                    for c in range(3):
+                        d += (centroid[p, c] / area[p] - centroid[q, c] / area[q]) * normal[q, c]
+                    if d > tol:
+                        s |= np.int64(1) << np.int64(j - a)
+                sig[p] = s
+        a = b
+    return sig

@@ -1,0 +1,76 @@
+"""Which voxel holds a surface point: used by photon deposits and the voxel view."""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, side_start, back_side, origin, h, dims):
+    """Voxel holding the point p that a ray hit on scene triangle `tri`
+    (its back side if `back`): the voxel of that side's piece in p's cell.
+    A point on a cell face may round into a neighbour holding no piece of
+    this side: then the side's piece in the nearest of the 26 neighbours.
+    -1 for the back of a one-sided triangle."""
+    s = back_side[tri] if back else tri
+    if s < 0:
+        return -1
+    a, b = side_start[s], side_start[s + 1]
+    c0 = int(math.floor((px - origin[0]) / h))
+    c1 = int(math.floor((py - origin[1]) / h))
+    c2 = int(math.floor((pz - origin[2]) / h))
+    best, best_d = -1, np.inf
+    for ring in range(2):
+        for d0 in range(-ring, ring + 1):
+            for d1 in range(-ring, ring + 1):
+                for d2 in range(-ring, ring + 1):
+                    x, y, z = c0 + d0, c1 + d1, c2 + d2
+                    if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                        continue
+                    key = (np.int64(x) * dims[1] + y) * dims[2] + z
+                    i = a + np.searchsorted(piece_key[a:b], key)
+                    if i < b and piece_key[i] == key:
+                        if ring == 0:
+                            return piece_voxel[i]
+                        dd = ((x + 0.5) * h + origin[0] - px) ** 2 + ((y + 0.5) * h + origin[1] - py) ** 2 + \
+                            ((z + 0.5) * h + origin[2] - pz) ** 2
+                        if dd < best_d:
+                            best, best_d = piece_voxel[i], dd
+    return best
+
+
+@njit(cache=True, parallel=True)
+def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_area):
+    """For each voxel smaller than min_area: the largest voxel of the same
+    surface around it (same facing, normals within ~25 degrees, planes
+    within h / 4, in its cell or the 26 neighbours), else -1. Photon
+    estimates of tiny voxels (a triangle grazing a cell corner) are pooled
+    with it: one photon in a 1e-6-cell sliver would otherwise be a spike."""
+    n = vkey.shape[0]
+    parent = np.full(n, -1, np.int64)
+    for i in prange(n):
+        if varea[i] >= min_area:
+            continue
+        best, best_a = -1, 0.0
+        for d0 in range(-1, 2):
+            for d1 in range(-1, 2):
+                for d2 in range(-1, 2):
+                    x, y, z = vcell[i, 0] + d0, vcell[i, 1] + d1, vcell[i, 2] + d2
+                    if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                        continue
+                    key = (np.int64(x) * dims[1] + y) * dims[2] + z
+                    lo = np.searchsorted(vkey, key)
+                    while lo < n and vkey[lo] == key:
+                        j = lo
+                        lo += 1
+                        if j == i or vfacing[j] != vfacing[i] or varea[j] <= best_a or varea[j] <= varea[i]:
+                            continue
+                        cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + \
+                            vnormal[i, 2] * vnormal[j, 2]
+                        plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
+                            (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
+                            (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
+                        if cos > 0.9 and abs(plane) < 0.25 * h:
+                            best, best_a = j, varea[j]
+        parent[i] = best
+    return parent

@@ -1,0 +1,85 @@
+import numba
+import numpy as np
+import pytest
+
+from baker.directions import direction_set
+from baker.propagate import LineSweeper
+from baker.voxels import voxelize
+from scenes.generate import cornell_box, furnace_box, furnace_obstacles, two_rooms
+from tests.naive import propagate_lines
+
+
+def gather_both(v, radiosity, dirs, offsets, sweeper=None):
+    sw = sweeper or LineSweeper(v)
+    fast = sw.gather(radiosity, dirs, offsets)
+    slow = propagate_lines(v.cell, v.origin, v.centroid, v.normal, radiosity, dirs.vectors, dirs.axis, dirs.unit,
+                           dirs.solid_angle / np.pi, offsets, v.cell_size)
+    return fast, slow
+
+
+@pytest.mark.parametrize("name,builder,res", [
+    ("obstacles", furnace_obstacles, 8),
+    ("rooms_midcell", lambda: two_rooms(wall_x=1.0 + 0.5 * 2 / 10), 10),
+    ("cornell", cornell_box, 8),
+])
+def test_kernel_matches_slow_reference(make_scene, name, builder, res):
+    scene = make_scene(builder(), f"prop_{name}")
+    v = voxelize(scene, res)
+    rng = np.random.default_rng(1)
+    radiosity = rng.random((len(v), 3))
+    dirs = direction_set(2)
+    sw = LineSweeper(v)
+    (g, s), (g_ref, s_ref) = gather_both(v, radiosity, dirs, sw.offsets(dirs, 5, 3), sw)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
+    assert (g > 0).any()
+
+
+def test_hashed_line_table_equals_dense(make_scene):
+    scene = make_scene(cornell_box(), "prop_cornell_hash")
+    v = voxelize(scene, 16)
+    dirs = direction_set(3)
+    radiosity = np.random.default_rng(2).random((len(v), 3))
+    dense = LineSweeper(v)
+    hashed = LineSweeper(v)
+    hashed.table_size = 1024  # far below the dense table: every family hashes its line ids
+    off = dense.offsets(dirs, 0, 2)
+    a = dense.gather(radiosity, dirs, off)
+    b = hashed.gather(radiosity, dirs, off)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+
+
+def test_closed_box_gathers_uniform_radiosity_exactly(make_scene):
+    v = voxelize(make_scene(furnace_box(), "prop_fb"), 12)
+    sw = LineSweeper(v)
+    for r in (1, 3, 6):
+        d = direction_set(r)
+        h = sw.irradiance(np.ones((len(v), 3)), d, sw.offsets(d, 1, r))
+        np.testing.assert_allclose(h, 1.0, rtol=1e-12)
+
+
+def test_same_result_for_any_thread_count(make_scene):
+    v = voxelize(make_scene(cornell_box(), "prop_cornell_thr"), 16)
+    d = direction_set(4)
+    sw = LineSweeper(v)
+    radiosity = np.random.default_rng(3).random((len(v), 3))
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        a = sw.gather(radiosity, d, sw.offsets(d, 0, 2))
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        b = sw.gather(radiosity, d, sw.offsets(d, 0, 2))
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+
+
+def test_offsets_are_seeded_and_in_range():
+    d = direction_set(5)
+    sw_off = LineSweeper.offsets(None, d, 7, 2)
+    a = d.vectors[np.arange(d.n_families), d.axis]
+    assert (sw_off >= 0).all() and (sw_off < a[:, None]).all()
+    np.testing.assert_array_equal(sw_off, LineSweeper.offsets(None, d, 7, 2))
+    assert not np.array_equal(sw_off, LineSweeper.offsets(None, d, 7, 3))
