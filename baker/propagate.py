@@ -24,7 +24,10 @@ class LineSweeper:
         n = len(cell)
         self.n = n
         self.cell = cell
-        self.centroid = np.ascontiguousarray(voxels.centroid, np.float64)
+        # lengths in cells: centroids in grid coordinates, as the cell plus its
+        # float32 fraction (exact to 1e-7 cell at any grid size)
+        frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
+        self.centroid = cell + frac.astype(np.float64)
         self.normal = np.ascontiguousarray(voxels.normal, np.float64)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
@@ -33,7 +36,7 @@ class LineSweeper:
         new[1:] = np.any(cell[1:] != cell[:-1], axis=1)
         group = np.cumsum(new) - 1
         ng = int(group[-1]) + 1 if n else 0
-        orders = np.empty((3, n), np.int64)
+        orders = np.empty((3, n), np.int32)
         starts = np.empty((3, ng + 1), np.int64)
         orders[0] = np.arange(n)
         for k in (1, 2):
@@ -49,13 +52,14 @@ class LineSweeper:
         self.max_group = int(np.diff(starts[0]).max()) if ng else 1
         self.cell_lo = cell.min(axis=0).astype(np.int64) if n else np.zeros(3, np.int64)
         self.cell_hi = cell.max(axis=0).astype(np.int64) if n else np.zeros(3, np.int64)
-        self.table_size = 1 << max(10, int(np.ceil(np.log2(max(4 * ng, 2)))))
+        self.table_size = 1 << max(10, int(np.ceil(np.log2(max(2 * ng, 2)))))
 
     @property
     def nbytes(self) -> int:
-        """Working memory of a bounce beyond the voxel arrays."""
-        per_voxel = 2 * (8 + 8)  # linked list + cos weight, per sweep
-        return self.orders.nbytes + self.starts.nbytes + 3 * 2 * 8 * self.table_size + self.n * (per_voxel + 24 + 8)
+        """Working memory of a bounce beyond the voxel arrays: the orders and
+        cell boundaries, the line tables, the per-axis copy and sums, scratch."""
+        per_voxel = (12 + 12 + 12 + 12) + (24 + 8) + (24 + 8) + 2 * (4 + 4) + 2 * 8  # copy, sums, out, scratch
+        return self.orders.nbytes + self.starts.nbytes + 2 * 16 * self.table_size + self.n * per_voxel
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
@@ -70,9 +74,9 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.origin, self.cell_lo, self.cell_hi, self.centroid,
+        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.centroid,
                                   self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
-                                  dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, self.h, TAU, KAPPA,
+                                  dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
                                   self.max_group, self.table_size)
 
     def irradiance(self, radiosity, dirs: DirectionSet, offsets):

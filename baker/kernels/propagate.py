@@ -9,6 +9,8 @@ position along it. Voxels are visited in the dominant-axis-major order
 (precomputed once), so each line is met in increasing X without sorting:
 a table keyed by line id holds the line's state (a sweep with a
 line-state table). Along +s the sweep runs forwards, along -s backwards.
+Families are processed grouped by dominant axis, over a copy of the voxel
+data laid out in that axis's order, so the sweeps read memory in sequence.
 
 Visibility (the rule of METHOD.md section 4): a voxel with n.s > 0 starts
 a ray and joins the line's waiting list; every next voxel y is tested
@@ -18,18 +20,17 @@ against every waiting x with d_x = (c_x - c_y).n_y:
     leaves) unless x or the last added voxel z forms a convex edge with y
     (d_z < 0, (c_y - c_z).n_z < 0, d_z >= -kappa h); then y joins the list.
 y is hidden from x when another voxel q of y's cell has its plane between
-them and the segment x -> y crosses it inside that cell (a wall standing
-mid-cell on a floor).
+them and the segment x -> y crosses it near that cell, on the side of y's
+plane where q stands (a wall standing mid-cell on a floor).
 Gathering writes only the gathering voxel, and a voxel gathers along s or
 -s, never both: the two sweeps of a family run in parallel, and families
 run in a fixed order, so the result is identical for any thread count.
 """
-import math
-
 import numpy as np
 from numba import njit, prange
 
 EMPTY = -1
+UNTOUCHED = -2
 
 
 @njit(cache=True)
@@ -44,10 +45,11 @@ def _line_bounds(lo, hi, k, k1, k2, A, B, C, mu, mu2):
 
 
 @njit(cache=True, inline="always")
-def _slot(p, q, dense, pmin, qmin, Q, hkeys, mask):
-    """Table slot of line (p, q): dense index, or open addressing when the
+def _slot(p, q, dense, pmin, P, qmin, hkeys, mask):
+    """Table slot of line (p, q): dense index (p fastest, so that the next
+    cells of a column meet adjacent entries), or open addressing when the
     dense table would be far larger than the voxel set (sparse scenes)."""
-    idx = (p - pmin) * Q + (q - qmin)
+    idx = (q - qmin) * P + (p - pmin)
     if dense:
         return idx
     h = np.uint64(idx) * np.uint64(0x9E3779B97F4A7C15)
@@ -64,7 +66,7 @@ def _slot(p, q, dense, pmin, qmin, Q, hkeys, mask):
 
 
 @njit(cache=True, inline="always")
-def _separated(x, y, buf, m, centroid, normal, tau_h, lo0, lo1, lo2, h):
+def _separated(x, y, buf, m, cen, nrm, tau_h, lo0, lo1, lo2, h):
     """Is y hidden from x by another voxel q of y's cell? True when q's plane
     lies between them (beyond tau h on each side), the segment from x's
     centroid to y's crosses that plane within half a cell of y's cell (the
@@ -78,88 +80,97 @@ def _separated(x, y, buf, m, centroid, normal, tau_h, lo0, lo1, lo2, h):
             continue
         sx = sy = 0.0
         for c in range(3):
-            sx += (centroid[x, c] - centroid[q, c]) * normal[q, c]
-            sy += (centroid[y, c] - centroid[q, c]) * normal[q, c]
+            sx += (cen[x, c] - cen[q, c]) * nrm[q, c]
+            sy += (cen[y, c] - cen[q, c]) * nrm[q, c]
         if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
             lam = sx / (sx - sy)
-            px = centroid[x, 0] + (centroid[y, 0] - centroid[x, 0]) * lam
-            py = centroid[x, 1] + (centroid[y, 1] - centroid[x, 1]) * lam
-            pz = centroid[x, 2] + (centroid[y, 2] - centroid[x, 2]) * lam
+            px = cen[x, 0] + (cen[y, 0] - cen[x, 0]) * lam
+            py = cen[x, 1] + (cen[y, 1] - cen[x, 1]) * lam
+            pz = cen[x, 2] + (cen[y, 2] - cen[x, 2]) * lam
             if lo0 - 0.5 * h <= px <= lo0 + h + 0.5 * h and lo1 - 0.5 * h <= py <= lo1 + h + 0.5 * h and \
                     lo2 - 0.5 * h <= pz <= lo2 + h + 0.5 * h:
                 # q's piece stands where the segment crosses: on the same side
                 # of y's plane as q (a wall rising from a floor), not behind it
                 # (the side of a box under its top: a convex edge)
-                pside = (px - centroid[y, 0]) * normal[y, 0] + (py - centroid[y, 1]) * normal[y, 1] + \
-                    (pz - centroid[y, 2]) * normal[y, 2]
-                qside = (centroid[q, 0] - centroid[y, 0]) * normal[y, 0] + (centroid[q, 1] - centroid[y, 1]) * \
-                    normal[y, 1] + (centroid[q, 2] - centroid[y, 2]) * normal[y, 2]
+                pside = (px - cen[y, 0]) * nrm[y, 0] + (py - cen[y, 1]) * nrm[y, 1] + (pz - cen[y, 2]) * nrm[y, 2]
+                qside = (cen[q, 0] - cen[y, 0]) * nrm[y, 0] + (cen[q, 1] - cen[y, 1]) * nrm[y, 1] + \
+                    (cen[q, 2] - cen[y, 2]) * nrm[y, 2]
                 if pside * qside > 0.0:
                     return True
     return False
 
 
 @njit(cache=True)
-def _sweep(order, starts, cell, origin, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
-           ux, uy, uz, weight, forward, h, tau, kappa, dense, pmin, qmin, Q, head, last, hkeys, mask, nxt,
-           cosw, touched, buf, bkey):
-    """One sweep of one direction (forwards: +s, backwards: -s)."""
+def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight,
+           forward, tau, kappa, dense, pmin, P, qmin, head, last, hkeys, mask, nxt, cosw, touched, buf, bkey):
+    """One sweep of one direction (forwards: +s, backwards: -s) over voxels
+    stored in this axis's order (index = position in the order). Lengths
+    are in cells: cen holds centroids in cell units (float64)."""
     ng = starts.shape[0] - 1
     if not forward:
         ux, uy, uz = -ux, -uy, -uz
     n_touched = 0
-    tau_h = tau * h
-    kappa_h = kappa * h
+    tau_h = tau
+    kappa_h = kappa
+    h = 1.0
+    x_cur = np.int64(-(2 ** 62))
+    pc = qc = np.int64(0)
     for gi in range(ng):
         g = gi if forward else ng - 1 - gi
         a, b = starts[g], starts[g + 1]
-        v0 = order[a]
-        X, Y, Z = np.int64(cell[v0, k]), np.int64(cell[v0, k1]), np.int64(cell[v0, k2])
-        lo0 = origin[0] + cell[v0, 0] * h
-        lo1 = origin[1] + cell[v0, 1] * h
-        lo2 = origin[2] + cell[v0, 2] * h
-        p = (C * X - A * Z - mu) // A
-        q = (B * X - A * Y - mu2) // A
-        s = _slot(p, q, dense, pmin, qmin, Q, hkeys, mask)
-        if head[s] == -2:
+        X, Y, Z = np.int64(cell[a, k]), np.int64(cell[a, k1]), np.int64(cell[a, k2])
+        if X != x_cur:
+            # floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one division per slab of X
+            x_cur = X
+            pc = (C * X - mu) // A
+            qc = (B * X - mu2) // A
+        p = pc - Z
+        q = qc - Y
+        s = _slot(p, q, dense, pmin, P, qmin, hkeys, mask)
+        if head[s] == UNTOUCHED:
             head[s] = EMPTY
             last[s] = EMPTY
             touched[n_touched] = s
             n_touched += 1
+        lo0, lo1, lo2 = float(cell[a, 0]), float(cell[a, 1]), float(cell[a, 2])
         # the cell's voxels in order along the sweep; ties: +1 before -1
         m = b - a
-        for i in range(m):
-            v = order[a + i]
-            t = centroid[v, 0] * ux + centroid[v, 1] * uy + centroid[v, 2] * uz
-            o = normal[v, 0] * ux + normal[v, 1] * uy + normal[v, 2] * uz
-            j = i
-            while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
-                bkey[j] = bkey[j - 1]
-                buf[j] = buf[j - 1]
-                j -= 1
-            bkey[j] = t
-            buf[j] = v if o > 0 else -v - 1  # sign carries the orientation
+        if m == 1:
+            o = nrm[a, 0] * ux + nrm[a, 1] * uy + nrm[a, 2] * uz
+            buf[0] = a if o > 0 else -a - 1
+        else:
+            for i in range(m):
+                v = a + i
+                t = cen[v, 0] * ux + cen[v, 1] * uy + cen[v, 2] * uz
+                o = nrm[v, 0] * ux + nrm[v, 1] * uy + nrm[v, 2] * uz
+                j = i
+                while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
+                    bkey[j] = bkey[j - 1]
+                    buf[j] = buf[j - 1]
+                    j -= 1
+                bkey[j] = t
+                buf[j] = v if o > 0 else -v - 1  # the sign carries the orientation
         for i in range(m):
             e = buf[i]
             y = e if e >= 0 else -e - 1
-            ny0, ny1, ny2 = normal[y, 0], normal[y, 1], normal[y, 2]
+            ny0, ny1, ny2 = nrm[y, 0], nrm[y, 1], nrm[y, 2]
             o = ny0 * ux + ny1 * uy + ny2 * uz
             if o == 0.0:
                 continue  # parallel to the line: neither sends nor receives
-            cy0, cy1, cy2 = centroid[y, 0], centroid[y, 1], centroid[y, 2]
+            cy0, cy1, cy2 = cen[y, 0], cen[y, 1], cen[y, 2]
             prev = EMPTY
             x = head[s]
             if o < 0.0:
                 # y faces the rays: waiting voxels in front of (or near) its plane see it
                 while x != EMPTY:
                     nx_ = nxt[x]
-                    d = (centroid[x, 0] - cy0) * ny0 + (centroid[x, 1] - cy1) * ny1 + (centroid[x, 2] - cy2) * ny2
+                    d = (cen[x, 0] - cy0) * ny0 + (cen[x, 1] - cy1) * ny1 + (cen[x, 2] - cy2) * ny2
                     if d >= -tau_h:
-                        if m == 1 or not _separated(x, y, buf, m, centroid, normal, tau_h, lo0, lo1, lo2, h):
+                        if m == 1 or not _separated(x, y, buf, m, cen, nrm, tau_h, lo0, lo1, lo2, h):
                             w = cosw[x]
-                            gathered[x, 0] += radiosity[y, 0] * w
-                            gathered[x, 1] += radiosity[y, 1] * w
-                            gathered[x, 2] += radiosity[y, 2] * w
+                            gathered[x, 0] += rad[y, 0] * w
+                            gathered[x, 1] += rad[y, 1] * w
+                            gathered[x, 2] += rad[y, 2] * w
                         if prev == EMPTY:
                             head[s] = nx_
                         else:
@@ -172,23 +183,17 @@ def _sweep(order, starts, cell, origin, centroid, normal, radiosity, gathered, q
                 z = last[s]
                 z_edge = False
                 if z != EMPTY:
-                    dz = (centroid[z, 0] - cy0) * ny0 + (centroid[z, 1] - cy1) * ny1 + (centroid[z, 2] - cy2) * ny2
-                    ez = (cy0 - centroid[z, 0]) * normal[z, 0] + (cy1 - centroid[z, 1]) * normal[z, 1] + \
-                        (cy2 - centroid[z, 2]) * normal[z, 2]
+                    dz = (cen[z, 0] - cy0) * ny0 + (cen[z, 1] - cy1) * ny1 + (cen[z, 2] - cy2) * ny2
+                    ez = (cy0 - cen[z, 0]) * nrm[z, 0] + (cy1 - cen[z, 1]) * nrm[z, 1] + (cy2 - cen[z, 2]) * nrm[z, 2]
                     z_edge = dz < 0.0 and ez < 0.0 and dz >= -kappa_h
                 while x != EMPTY:
                     nx_ = nxt[x]
-                    d = (centroid[x, 0] - cy0) * ny0 + (centroid[x, 1] - cy1) * ny1 + (centroid[x, 2] - cy2) * ny2
+                    d = (cen[x, 0] - cy0) * ny0 + (cen[x, 1] - cy1) * ny1 + (cen[x, 2] - cy2) * ny2
                     blocked = False
-                    if d < -tau_h:
-                        blocked = True
-                        if z_edge:
-                            blocked = False
-                        else:
-                            ex = (cy0 - centroid[x, 0]) * normal[x, 0] + (cy1 - centroid[x, 1]) * normal[x, 1] + \
-                                (cy2 - centroid[x, 2]) * normal[x, 2]
-                            if ex < 0.0 and d >= -kappa_h:
-                                blocked = False
+                    if d < -tau_h and not z_edge:
+                        ex = (cy0 - cen[x, 0]) * nrm[x, 0] + (cy1 - cen[x, 1]) * nrm[x, 1] + \
+                            (cy2 - cen[x, 2]) * nrm[x, 2]
+                        blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
                         if prev == EMPTY:
                             head[s] = nx_
@@ -205,53 +210,95 @@ def _sweep(order, starts, cell, origin, centroid, normal, radiosity, gathered, q
                 last[s] = y
     for i in range(n_touched):
         s = touched[i]
-        head[s] = -2
+        head[s] = UNTOUCHED
         last[s] = EMPTY
         if not dense:
             hkeys[s] = EMPTY
 
 
 @njit(cache=True, parallel=True)
-def propagate_families(orders, starts, cell, origin, cell_lo, cell_hi, centroid, normal, radiosity, vectors, axes, units,
-                       weights, offsets, h, tau, kappa, max_group, table_size):
+def _gather_permuted(order, cell, centroid, normal, radiosity, cell_k, cen_k, nrm_k, rad_k):
+    """Copies the voxel data into axis order: cell (int32), centroid in cell
+    units (float64), normal (float64), radiosity (float32)."""
+    n = order.shape[0]
+    for i in prange(n):
+        v = order[i]
+        for c in range(3):
+            cell_k[i, c] = cell[v, c]
+            cen_k[i, c] = centroid[v, c]
+            nrm_k[i, c] = normal[v, c]
+            rad_k[i, c] = radiosity[v, c]
+
+
+def propagate_families(orders, starts, cell, cell_lo, cell_hi, centroid, normal, radiosity, vectors, axes,
+                       units, weights, offsets, tau, kappa, max_group, table_size):
     """Gathers radiosity over every family of a direction set.
 
-    orders (3, n) int64: voxel order with axis 0, 1, 2 major; starts (3, ng+1)
-    the cell boundaries in each order; cell_lo, cell_hi (3,) the cells'
-    bounding box; table_size a power of two >= 2 * cells. vectors (nf, 3) int
+    Lengths in cells: centroid (n, 3) in cell units (grid coordinates),
+    tau and kappa in cells. orders (3, n) int32: voxel order with axis 0, 1,
+    2 major; starts (3, ng+1) the cell boundaries in each order; cell_lo,
+    cell_hi (3,) the cells' bounding box; table_size a power of two >= 2 *
+    cells. vectors (nf, 3)
     canonical s; axes (nf,) dominant axis; units (nf, 3) unit s; weights
     (nf,) dW(s) / pi; offsets (nf, 2) line offsets mu, mu'.
     Returns gathered (n, 3) = sum_s B(I(x, s)) (n.s) dW / pi and the
     quadrature's own cosine integral S(n_x) (n,), both float64.
     """
     n = cell.shape[0]
-    ng = starts.shape[1] - 1
     gathered = np.zeros((n, 3))
     quad = np.zeros(n)
-    nf = vectors.shape[0]
-    # per sweep (2): line table (dense or hashed), linked list, cos weights
-    size = table_size
-    heads = np.full((2, size), -2, np.int64)
-    lasts = np.full((2, size), EMPTY, np.int64)
-    hkeys = np.full((2, size), EMPTY, np.int64)
-    nxts = np.empty((2, n), np.int64)
-    cosws = np.empty((2, n))
-    toucheds = np.empty((2, ng), np.int64)
-    bufs = np.empty((2, max_group), np.int64)
-    bkeys = np.empty((2, max_group))
-    for f in range(nf):
-        k = axes[f]
-        k1, k2 = (k + 1) % 3, (k + 2) % 3
+    if n == 0:
+        return gathered, quad
+    scratch = _scratch(n, starts.shape[1] - 1, max_group, table_size)
+    cell_k = np.empty((n, 3), np.int32)
+    cen_k = np.empty((n, 3))
+    nrm_k = np.empty((n, 3))
+    rad_k = np.empty((n, 3), np.float32)
+    g_k = np.empty((n, 3))
+    q_k = np.empty(n)
+    for k in range(3):
+        fams = np.nonzero(axes == k)[0]
+        if len(fams) == 0:
+            continue
+        _gather_permuted(orders[k], cell, centroid, normal, radiosity, cell_k, cen_k, nrm_k, rad_k)
+        g_k[:] = 0.0
+        q_k[:] = 0.0
+        _families(fams, starts[k], cell_k, cen_k, nrm_k, rad_k, g_k, q_k, cell_lo, cell_hi, vectors, units,
+                  weights, offsets, k, tau, kappa, table_size, *scratch)
+        _scatter_add(orders[k], g_k, q_k, gathered, quad)
+    return gathered, quad
+
+
+def _scratch(n, ng, max_group, table_size):
+    """Per sweep (2): line table (head, last, hashed keys), linked list,
+    cos weights, touched slots, the cell's sort buffer."""
+    return (np.full((2, table_size), UNTOUCHED, np.int32), np.full((2, table_size), EMPTY, np.int32),
+            np.full((2, table_size), EMPTY, np.int64), np.empty((2, n), np.int32), np.empty((2, n)),
+            np.empty((2, ng), np.int32), np.empty((2, max_group), np.int64), np.empty((2, max_group)))
+
+
+@njit(cache=True, parallel=True)
+def _families(fams, st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, cell_lo, cell_hi, vectors, units, weights, offsets,
+              k, tau, kappa, size, heads, lasts, hkeys, nxts, cosws, toucheds, bufs, bkeys):
+    k1, k2 = (k + 1) % 3, (k + 2) % 3
+    for fi in range(fams.shape[0]):
+        f = fams[fi]
         A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
         mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
         pmin, P, qmin, Q = _line_bounds(cell_lo, cell_hi, k, k1, k2, A, B, C, mu, mu2)
         dense = P * Q <= size
-        mask = size - 1
-        order = orders[k]
-        st = starts[k]
         for sweep in prange(2):
-            _sweep(order, st, cell, origin, centroid, normal, radiosity, gathered, quad, k, k1, k2, A, B, C, mu, mu2,
-                   units[f, 0], units[f, 1], units[f, 2], weights[f], sweep == 0, h, tau, kappa, dense, pmin, qmin,
-                   Q, heads[sweep], lasts[sweep], hkeys[sweep], mask, nxts[sweep], cosws[sweep], toucheds[sweep],
-                   bufs[sweep], bkeys[sweep])
-    return gathered, quad
+            _sweep(st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1],
+                   units[f, 2], weights[f], sweep == 0, tau, kappa, dense, pmin, P, qmin, heads[sweep],
+                   lasts[sweep], hkeys[sweep], size - 1, nxts[sweep], cosws[sweep], toucheds[sweep], bufs[sweep],
+                   bkeys[sweep])
+
+
+@njit(cache=True, parallel=True)
+def _scatter_add(order, g_k, q_k, gathered, quad):
+    for i in prange(order.shape[0]):
+        v = order[i]
+        gathered[v, 0] += g_k[i, 0]
+        gathered[v, 1] += g_k[i, 1]
+        gathered[v, 2] += g_k[i, 2]
+        quad[v] += q_k[i]
