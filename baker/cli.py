@@ -98,7 +98,8 @@ def cmd_render(args):
         from .config import solver_config
         from .solver import solve
         from .voxelview import render_voxels
-        config = solver_config(args.preset, resolution=args.resolution, radius=args.radius, photons=args.photons,
+        config = solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size, radius=args.radius,
+                               photons=args.photons,
                                seed=args.seed, threads=args.threads, memory_budget_mb=args.memory_budget,
                                schedule=args.schedule, tolerance=args.tolerance, max_bounces=args.max_bounces)
         solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
@@ -154,7 +155,8 @@ def build_parser():
     g = p.add_argument_group("voxel solver (--method voxels)")
     g.add_argument("--preset", choices=("preview", "default", "high"), default="default",
                    help="solver preset (default: default)")
-    g.add_argument("--resolution", type=int, help="voxel cells along the longest axis")
+    g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis")
+    g.add_argument("--cell-size", type=float, help="voxel cell size in scene units (instead of --resolution)")
     g.add_argument("--radius", type=int, help="direction radius r of the first propagated bounce")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce")
     g.add_argument("--photons", type=int, help="photons for the first bounce")

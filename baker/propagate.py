@@ -16,6 +16,7 @@ from .kernels.rng import rand01
 
 TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
 KAPPA = 1.0   # convex-edge reach, in cells
+FAMILIES_PER_PASS = 2  # families swept per read of the voxel data (bench/propagation.py)
 
 
 class LineSweeper:
@@ -25,10 +26,9 @@ class LineSweeper:
         self.n = n
         self.cell = cell
         # lengths in cells: centroids in grid coordinates, as the cell plus its
-        # float32 fraction (exact to 1e-7 cell at any grid size)
-        frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
-        self.centroid = cell + frac.astype(np.float64)
-        self.normal = np.ascontiguousarray(voxels.normal, np.float64)
+        # float32 fraction (exact to 1e-7 cell at any grid size); float32 normals
+        self.frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
+        self.normal = np.ascontiguousarray(voxels.normal, np.float32)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
@@ -37,7 +37,7 @@ class LineSweeper:
         group = np.cumsum(new) - 1
         ng = int(group[-1]) + 1 if n else 0
         orders = np.empty((3, n), np.int32)
-        starts = np.empty((3, ng + 1), np.int64)
+        starts = np.empty((3, ng + 1), np.int32)
         orders[0] = np.arange(n)
         for k in (1, 2):
             k1, k2 = (k + 1) % 3, (k + 2) % 3
@@ -55,11 +55,36 @@ class LineSweeper:
         self.table_size = 1 << max(10, int(np.ceil(np.log2(max(2 * ng, 2)))))
 
     @property
+    def centroid(self) -> np.ndarray:
+        """(n, 3) float64 centroids in grid coordinates, as the kernel sees them."""
+        return self.cell + self.frac.astype(np.float64)
+
+    def line_table(self, dirs: DirectionSet):
+        """(size, hashed): a dense line table as large as the largest family's
+        line-id range when that stays within twice the cells (compact
+        scenes), else a hashed table of a power of two >= 2 x cells (sparse
+        scenes: the dense range grows with the bounding box, not the surface)."""
+        ext = (self.cell_hi - self.cell_lo + 1).astype(np.int64)
+        v = np.abs(dirs.vectors.astype(np.int64))
+        k = dirs.axis
+        a = v[np.arange(len(k)), k]
+        b = v[np.arange(len(k)), (k + 1) % 3]
+        c = v[np.arange(len(k)), (k + 2) % 3]
+        p = (c * ext[k] + a * ext[(k + 2) % 3]) // a + 2
+        q = (b * ext[k] + a * ext[(k + 1) % 3]) // a + 2
+        need = int((p * q).max())
+        if need <= self.table_size:
+            return need, False
+        return self.table_size, True
+
+    @property
     def nbytes(self) -> int:
         """Working memory of a bounce beyond the voxel arrays: the orders and
         cell boundaries, the line tables, the per-axis copy and sums, scratch."""
-        per_voxel = (12 + 12 + 12 + 12) + (24 + 8) + (24 + 8) + 2 * (4 + 4) + 2 * 8  # copy, sums, out, scratch
-        return self.orders.nbytes + self.starts.nbytes + 2 * 16 * self.table_size + self.n * per_voxel
+        f = FAMILIES_PER_PASS
+        per_voxel = (12 + 24 + 24 + 12) + 2 * (24 + 8) + (24 + 8) + 2 * f * 4  # copy, 2 slot sums, out, lists
+        return self.orders.nbytes + self.starts.nbytes + self.frac.nbytes + self.normal.nbytes + \
+            2 * f * (8 * self.table_size + 4 * self.starts.shape[1]) + self.n * per_voxel
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
@@ -74,11 +99,13 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.centroid,
+        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.frac,
                                   self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
-                                  self.max_group, self.table_size)
+                                  self.max_group, *self.line_table(dirs), per_pass=FAMILIES_PER_PASS)
 
     def irradiance(self, radiosity, dirs: DirectionSet, offsets):
+        """H (n, 3) = gathered / S, computed in place."""
         g, s = self.gather(radiosity, dirs, offsets)
-        return np.where(s[:, None] > 0, g / np.where(s > 0, s, 1.0)[:, None], 0.0)
+        g /= np.where(s > 0, s, np.inf)[:, None]
+        return g

@@ -13,7 +13,7 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     sw = sweeper or LineSweeper(v)
     fast = sw.gather(radiosity, dirs, offsets)
     # the kernel works in cells: the same centroids (grid coordinates) for the reference
-    slow = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal, radiosity, dirs.vectors, dirs.axis, dirs.unit,
+    slow = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(np.float64), radiosity, dirs.vectors, dirs.axis, dirs.unit,
                            dirs.solid_angle / np.pi, offsets, 1.0)
     return fast, slow
 
@@ -45,7 +45,8 @@ def test_hashed_line_table_equals_dense(make_scene):
     radiosity = np.random.default_rng(2).random((len(v), 3))
     dense = LineSweeper(v)
     hashed = LineSweeper(v)
-    hashed.table_size = 1024  # far below the dense table: every family hashes its line ids
+    hashed.table_size = 1024  # far below the dense range: every family hashes its line ids
+    assert hashed.line_table(dirs)[1] and not dense.line_table(dirs)[1]
     off = dense.offsets(dirs, 0, 2)
     a = dense.gather(radiosity, dirs, off)
     b = hashed.gather(radiosity, dirs, off)

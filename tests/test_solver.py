@@ -193,3 +193,40 @@ def test_cli_voxel_view_and_stats(tmp_path):
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.startswith("error: scenes/cornell_box.glb: voxelization")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_punctual_light_photons(tmp_path):
+    """Photons from a point light (intensity I at height h) and a
+    directional light (irradiance E) on a one-sided floor:
+    H_1 = I h / (h^2 + r^2)^(3/2) and H_1 = E cos(theta)."""
+    from baker.scene import load_scene
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)),
+           b.material("floor", (0.5,) * 3))
+    b.light("bulb", "point", intensity=3.0, position=(0, 1.0, 0))
+    b.save(tmp_path / "point.glb")
+    n = 2_000_000
+    sol = solve(load_scene(tmp_path / "point.glb"), solver_config("default", resolution=32, photons=n,
+                                                                 max_bounces=1))
+    v = sol.voxels
+    r = np.hypot(v.centroid[:, 0], v.centroid[:, 2])
+    sel = (r < 1.0) & (v.area > 0.99 * v.cell_size ** 2)
+    exact = 3.0 * 1.0 / (1.0 + r[sel] ** 2) ** 1.5
+    count = n * exact * v.area[sel] / (4 * np.pi * 3.0)
+    err = np.abs(sol.irradiance[sel, 0] - exact)
+    assert np.all(err < 4.5 * exact / np.sqrt(count) + 0.01 * exact)
+
+    b = GltfBuilder()
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)),
+           b.material("floor", (0.5,) * 3))
+    d = np.array([0.3, -1.0, 0.2])
+    b.light("sun", "directional", intensity=2.0, direction=d / np.linalg.norm(d))
+    b.save(tmp_path / "sun.glb")
+    sol = solve(load_scene(tmp_path / "sun.glb"), solver_config("default", resolution=16, photons=n, max_bounces=1))
+    v = sol.voxels
+    cos = 1.0 / np.linalg.norm(d)
+    inner = (np.abs(v.centroid[:, 0]) < 1.5) & (np.abs(v.centroid[:, 2]) < 1.5)
+    h1 = sol.irradiance[inner, 0]
+    assert abs(h1.mean() / (2.0 * cos) - 1) < 0.01
+    assert np.abs(h1 / (2.0 * cos) - 1).max() < 0.1
