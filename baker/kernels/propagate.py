@@ -47,9 +47,9 @@ def _line_bounds(lo, hi, k, k1, k2, A, B, C, mu, mu2):
 
 @njit(cache=True, inline="always")
 def _slot(p, q, dense, pmin, P, qmin, hkeys, mask):
-    """Table slot of line (p, q): dense index (p fastest, so that the next
-    cells of a column meet adjacent entries), or open addressing when the
-    dense table would be far larger than the voxel set (sparse scenes)."""
+    """Table slot of line (p, q): dense index (p fastest: the next cells of
+    a column meet adjacent entries), or open addressing when the dense table
+    would be far larger than the voxel set (sparse scenes)."""
     idx = (q - qmin) * P + (p - pmin)
     if dense:
         return idx
@@ -112,12 +112,13 @@ def _separated(x, y, buf, m, cell, frac, nrm, tau_h, lo0, lo1, lo2, h):
 
 @njit(cache=True)
 def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors, units, weights, offsets, forward,
-           tau, kappa, dense, pmin, P, qmin, head, last, hkeys, mask, nxt, touched, n_touched, pc, qc, buf, bkey):
+           tau, kappa, dense, pmin, P, qmin, state, hkeys, mask, nxt, touched, n_touched, pc, qc, buf, bkey):
     """One pass over the voxels (stored in this axis's order; lengths in
     cells) sweeping the F families `fams` at once in one direction
     (forwards: +s, backwards: -s): each voxel's data is read once for all
-    F. Per family f: its line table (head, last, hkeys)[f], linked list
-    nxt[f], touched slots."""
+    F. Per family j: its line table state[j] (head and last added voxel of
+    each line's waiting list, side by side), hkeys[j], linked list nxt[j],
+    touched slots."""
     ng = starts.shape[0] - 1
     nfam = fams.shape[0]
     sgn = 1.0 if forward else -1.0
@@ -144,9 +145,9 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors
             ux, uy, uz = sgn * units[f, 0], sgn * units[f, 1], sgn * units[f, 2]
             weight = weights[f]
             s = _slot(pc[j] - Z, qc[j] - Y, dense[j], pmin[j], P[j], qmin[j], hkeys[j], mask)
-            if head[j, s] == UNTOUCHED:
-                head[j, s] = EMPTY
-                last[j, s] = EMPTY
+            if state[j, s, 0] == UNTOUCHED:
+                state[j, s, 0] = EMPTY
+                state[j, s, 1] = EMPTY
                 touched[j, n_touched[j]] = s
                 n_touched[j] += 1
             # the cell's voxels in order along the sweep; ties: +1 before -1
@@ -174,7 +175,7 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors
                     continue  # parallel to the line: neither sends nor receives
                 cy0, cy1, cy2 = cen[y, 0], cen[y, 1], cen[y, 2]
                 prev = EMPTY
-                x = head[j, s]
+                x = state[j, s, 0]
                 if o < 0.0:
                     # y faces the rays: waiting voxels in front of (or near) its plane see it
                     while x != EMPTY:
@@ -187,7 +188,7 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors
                                 gathered[x, 1] += rad[y, 1] * w
                                 gathered[x, 2] += rad[y, 2] * w
                             if prev == EMPTY:
-                                head[j, s] = nx_
+                                state[j, s, 0] = nx_
                             else:
                                 nxt[j, prev] = nx_
                         else:
@@ -195,7 +196,7 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors
                         x = nx_
                 else:
                     # y turns its back: voxels behind its plane hit that back, unless convex edge
-                    z = last[j, s]
+                    z = state[j, s, 1]
                     z_edge = False
                     if z != EMPTY:
                         dz = (cen[z, 0] - cy0) * ny0 + (cen[z, 1] - cy1) * ny1 + (cen[z, 2] - cy2) * ny2
@@ -212,21 +213,21 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, fams, vectors
                             blocked = not (ex < 0.0 and d >= -kappa_h)
                         if blocked:
                             if prev == EMPTY:
-                                head[j, s] = nx_
+                                state[j, s, 0] = nx_
                             else:
                                 nxt[j, prev] = nx_
                         else:
                             prev = x
                         x = nx_
                     quad[y] += o * weight
-                    nxt[j, y] = head[j, s]
-                    head[j, s] = y
-                    last[j, s] = y
+                    nxt[j, y] = state[j, s, 0]
+                    state[j, s, 0] = y
+                    state[j, s, 1] = y
     for j in range(nfam):
         for i in range(n_touched[j]):
             s = touched[j, i]
-            head[j, s] = UNTOUCHED
-            last[j, s] = EMPTY
+            state[j, s, 0] = UNTOUCHED
+            state[j, s, 1] = EMPTY
             if not dense[j]:
                 hkeys[j, s] = EMPTY
         n_touched[j] = 0
@@ -273,8 +274,9 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, rad
     ng = starts.shape[1] - 1
     F = max(1, int(per_pass))
     slots = 2
-    head = np.full((slots, F, table_size), UNTOUCHED, np.int32)
-    last = np.full((slots, F, table_size), EMPTY, np.int32)
+    state = np.empty((slots, F, table_size, 2), np.int32)
+    state[..., 0] = UNTOUCHED
+    state[..., 1] = EMPTY
     hkeys = np.full((slots, F, table_size if hashed else 1), EMPTY, np.int64)
     nxt = np.empty((slots, F, n), np.int32)
     touched = np.empty((slots, F, ng), np.int32)
@@ -305,14 +307,14 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, rad
             for j, f in enumerate(ch):
                 info[c, j] = bounds[bmap[int(f)]]
         _passes(padded, info, starts[k], cell_k, cen_k, nrm_k, rad_k, g_k, q_k, vectors, units, weights, offsets,
-                k, tau, kappa, table_size, head, last, hkeys, nxt, touched, max_group)
+                k, tau, kappa, table_size, state, hkeys, nxt, touched, max_group)
         _scatter_add(orders[k], g_k, q_k, gathered, quad)
     return gathered, quad
 
 
 @njit(cache=True, parallel=True)
 def _passes(chunks, info, st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, vectors, units, weights, offsets, k, tau,
-            kappa, size, head, last, hkeys, nxt, touched, max_group):
+            kappa, size, state, hkeys, nxt, touched, max_group):
     """Slot j (of 2) sweeps chunks j, j + 2, ...: each chunk's families
     forwards then backwards, into the slot's own sums."""
     k1, k2 = (k + 1) % 3, (k + 2) % 3
@@ -337,7 +339,7 @@ def _passes(chunks, info, st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, vectors, un
                 dense[j] = info[c, j, 1] * info[c, j, 3] <= size
             for forward in (True, False):
                 _sweep(st, cell_k, cen_k, nrm_k, rad_k, g_k[slot], q_k[slot], k, k1, k2, fams, vectors, units,
-                       weights, offsets, forward, tau, kappa, dense, pmin, P, qmin, head[slot], last[slot],
+                       weights, offsets, forward, tau, kappa, dense, pmin, P, qmin, state[slot],
                        hkeys[slot], size - 1, nxt[slot], touched[slot], n_touched, pc, qc, buf, bkey)
 
 
