@@ -16,7 +16,6 @@ from .kernels.rng import rand01
 
 TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
 KAPPA = 1.0   # convex-edge reach, in cells
-FAMILIES_PER_PASS = 2  # families swept per read of the voxel data (bench/propagation.py)
 
 
 class LineSweeper:
@@ -81,10 +80,9 @@ class LineSweeper:
     def nbytes(self) -> int:
         """Working memory of a bounce beyond the voxel arrays: the orders and
         cell boundaries, the line tables, the per-axis copy and sums, scratch."""
-        f = FAMILIES_PER_PASS
-        per_voxel = (12 + 24 + 24 + 12) + 2 * (24 + 8) + (24 + 8) + 2 * f * 4  # copy, 2 slot sums, out, lists
+        per_voxel = (12 + 24 + 24 + 12) + (24 + 8) + (24 + 8) + 2 * 4  # axis copy, axis sums, out, lists
         return self.orders.nbytes + self.starts.nbytes + self.frac.nbytes + self.normal.nbytes + \
-            2 * f * (8 * self.table_size + 4 * self.starts.shape[1]) + self.n * per_voxel
+            2 * (8 * self.table_size + 4 * self.starts.shape[1]) + self.n * per_voxel
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
@@ -102,7 +100,7 @@ class LineSweeper:
         return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.frac,
                                   self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
-                                  self.max_group, *self.line_table(dirs), per_pass=FAMILIES_PER_PASS)
+                                  self.max_group, *self.line_table(dirs))
 
     def irradiance(self, radiosity, dirs: DirectionSet, offsets):
         """H (n, 3) = gathered / S, computed in place."""
