@@ -68,7 +68,7 @@ def _slot(p, q, dense, pmin, P, qmin, hkeys, mask):
 
 
 @njit(cache=True, inline="always")
-def _separated(x, y, buf, m, cen, nrm, tau_h, lo0, lo1, lo2, h):
+def _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
     """Is y hidden from x by another voxel q of y's cell? True when q's plane
     lies between them (beyond tau h on each side), the segment from x's
     centroid to y's crosses that plane within half a cell of y's cell (the
@@ -82,33 +82,37 @@ def _separated(x, y, buf, m, cen, nrm, tau_h, lo0, lo1, lo2, h):
             continue
         sx = sy = 0.0
         for c in range(3):
-            sx += (cen[x, c] - cen[q, c]) * nrm[q, c]
-            sy += (cen[y, c] - cen[q, c]) * nrm[q, c]
+            sx += (rec[x, c] - rec[q, c]) * rec[q, 3 + c]
+            sy += (rec[y, c] - rec[q, c]) * rec[q, 3 + c]
         if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
             lam = sx / (sx - sy)
-            px = cen[x, 0] + (cen[y, 0] - cen[x, 0]) * lam
-            py = cen[x, 1] + (cen[y, 1] - cen[x, 1]) * lam
-            pz = cen[x, 2] + (cen[y, 2] - cen[x, 2]) * lam
+            px = rec[x, 0] + (rec[y, 0] - rec[x, 0]) * lam
+            py = rec[x, 1] + (rec[y, 1] - rec[x, 1]) * lam
+            pz = rec[x, 2] + (rec[y, 2] - rec[x, 2]) * lam
             if lo0 - 0.5 * h <= px <= lo0 + h + 0.5 * h and lo1 - 0.5 * h <= py <= lo1 + h + 0.5 * h and \
                     lo2 - 0.5 * h <= pz <= lo2 + h + 0.5 * h:
                 # q's piece stands where the segment crosses: on the same side
                 # of y's plane as q (a wall rising from a floor), not behind it
                 # (the side of a box under its top: a convex edge)
-                pside = (px - cen[y, 0]) * nrm[y, 0] + (py - cen[y, 1]) * nrm[y, 1] + (pz - cen[y, 2]) * nrm[y, 2]
-                qside = (cen[q, 0] - cen[y, 0]) * nrm[y, 0] + (cen[q, 1] - cen[y, 1]) * nrm[y, 1] + \
-                    (cen[q, 2] - cen[y, 2]) * nrm[y, 2]
+                pside = (px - rec[y, 0]) * rec[y, 3] + (py - rec[y, 1]) * rec[y, 4] + (pz - rec[y, 2]) * rec[y, 5]
+                qside = (rec[q, 0] - rec[y, 0]) * rec[y, 3] + (rec[q, 1] - rec[y, 1]) * rec[y, 4] + \
+                    (rec[q, 2] - rec[y, 2]) * rec[y, 5]
                 if pside * qside > 0.0:
                     return True
     return False
 
 
 @njit(cache=True)
-def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight,
-           forward, tau, kappa, dense, pmin, P, qmin, head, last, hkeys, mask, nxt, cosw, touched, buf, bkey):
+def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau, kappa, dense, pmin,
+           P, qmin, head, last, hkeys, mask, nxt, touched, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over voxels
     stored in this axis's order (index = position in the order). Lengths
-    are in cells: cen holds centroids in cell units (float64)."""
+    are in cells. rec (n, 16) holds, per voxel, what a sweep touches
+    together: centroid 0-2, normal 3-5, cos weight 6 (forwards) or 7
+    (backwards), gathered 8-10, S 11, radiosity 12-14: a voxel revisited
+    long after it joined a waiting list costs one or two cache lines."""
     ng = starts.shape[0] - 1
+    cw = 6 if forward else 7
     if not forward:
         ux, uy, uz = -ux, -uy, -uz
     n_touched = 0
@@ -126,9 +130,7 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
             x_cur = X
             pc = (C * X - mu) // A
             qc = (B * X - mu2) // A
-        p = pc - Z
-        q = qc - Y
-        s = _slot(p, q, dense, pmin, P, qmin, hkeys, mask)
+        s = _slot(pc - Z, qc - Y, dense, pmin, P, qmin, hkeys, mask)
         if head[s] == UNTOUCHED:
             head[s] = EMPTY
             last[s] = EMPTY
@@ -138,13 +140,13 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
         # the cell's voxels in order along the sweep; ties: +1 before -1
         m = b - a
         if m == 1:
-            o = nrm[a, 0] * ux + nrm[a, 1] * uy + nrm[a, 2] * uz
+            o = rec[a, 3] * ux + rec[a, 4] * uy + rec[a, 5] * uz
             buf[0] = a if o > 0 else -a - 1
         else:
             for i in range(m):
                 v = a + i
-                t = cen[v, 0] * ux + cen[v, 1] * uy + cen[v, 2] * uz
-                o = nrm[v, 0] * ux + nrm[v, 1] * uy + nrm[v, 2] * uz
+                t = rec[v, 0] * ux + rec[v, 1] * uy + rec[v, 2] * uz
+                o = rec[v, 3] * ux + rec[v, 4] * uy + rec[v, 5] * uz
                 j = i
                 while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
                     bkey[j] = bkey[j - 1]
@@ -155,24 +157,24 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
         for i in range(m):
             e = buf[i]
             y = e if e >= 0 else -e - 1
-            ny0, ny1, ny2 = nrm[y, 0], nrm[y, 1], nrm[y, 2]
+            ny0, ny1, ny2 = rec[y, 3], rec[y, 4], rec[y, 5]
             o = ny0 * ux + ny1 * uy + ny2 * uz
             if o == 0.0:
                 continue  # parallel to the line: neither sends nor receives
-            cy0, cy1, cy2 = cen[y, 0], cen[y, 1], cen[y, 2]
+            cy0, cy1, cy2 = rec[y, 0], rec[y, 1], rec[y, 2]
             prev = EMPTY
             x = head[s]
             if o < 0.0:
                 # y faces the rays: waiting voxels in front of (or near) its plane see it
                 while x != EMPTY:
                     nx_ = nxt[x]
-                    d = (cen[x, 0] - cy0) * ny0 + (cen[x, 1] - cy1) * ny1 + (cen[x, 2] - cy2) * ny2
+                    d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
                     if d >= -tau_h:
-                        if m == 1 or not _separated(x, y, buf, m, cen, nrm, tau_h, lo0, lo1, lo2, h):
-                            w = cosw[x]
-                            gathered[x, 0] += rad[y, 0] * w
-                            gathered[x, 1] += rad[y, 1] * w
-                            gathered[x, 2] += rad[y, 2] * w
+                        if m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
+                            w = rec[x, cw]
+                            rec[x, 8] += rec[y, 12] * w
+                            rec[x, 9] += rec[y, 13] * w
+                            rec[x, 10] += rec[y, 14] * w
                         if prev == EMPTY:
                             head[s] = nx_
                         else:
@@ -185,16 +187,16 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
                 z = last[s]
                 z_edge = False
                 if z != EMPTY:
-                    dz = (cen[z, 0] - cy0) * ny0 + (cen[z, 1] - cy1) * ny1 + (cen[z, 2] - cy2) * ny2
-                    ez = (cy0 - cen[z, 0]) * nrm[z, 0] + (cy1 - cen[z, 1]) * nrm[z, 1] + (cy2 - cen[z, 2]) * nrm[z, 2]
+                    dz = (rec[z, 0] - cy0) * ny0 + (rec[z, 1] - cy1) * ny1 + (rec[z, 2] - cy2) * ny2
+                    ez = (cy0 - rec[z, 0]) * rec[z, 3] + (cy1 - rec[z, 1]) * rec[z, 4] + (cy2 - rec[z, 2]) * rec[z, 5]
                     z_edge = dz < 0.0 and ez < 0.0 and dz >= -kappa_h
                 while x != EMPTY:
                     nx_ = nxt[x]
-                    d = (cen[x, 0] - cy0) * ny0 + (cen[x, 1] - cy1) * ny1 + (cen[x, 2] - cy2) * ny2
+                    d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
                     blocked = False
                     if d < -tau_h and not z_edge:
-                        ex = (cy0 - cen[x, 0]) * nrm[x, 0] + (cy1 - cen[x, 1]) * nrm[x, 1] + \
-                            (cy2 - cen[x, 2]) * nrm[x, 2]
+                        ex = (cy0 - rec[x, 0]) * rec[x, 3] + (cy1 - rec[x, 1]) * rec[x, 4] + \
+                            (cy2 - rec[x, 2]) * rec[x, 5]
                         blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
                         if prev == EMPTY:
@@ -205,8 +207,8 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
                         prev = x
                     x = nx_
                 w = o * weight
-                cosw[y] = w
-                quad[y] += w
+                rec[y, cw] = w
+                rec[y, 11] += w
                 nxt[y] = head[s]
                 head[s] = y
                 last[s] = y
@@ -219,18 +221,19 @@ def _sweep(starts, cell, cen, nrm, rad, gathered, quad, k, k1, k2, A, B, C, mu, 
 
 
 @njit(cache=True, parallel=True)
-def _gather_permuted(order, cell, frac, normal, radiosity, cell_k, cen_k, nrm_k, rad_k):
-    """Copies the voxel data into axis order: cell (int32), centroid in grid
-    coordinates = cell + float32 fraction (float64), normal (float32 values
-    as float64), radiosity (float32): the sweeps read memory in sequence."""
+def _gather_permuted(order, cell, frac, normal, radiosity, cell_k, rec):
+    """Lays the voxel data out in axis order: cell (int32) and the record
+    (centroid = cell + float32 fraction, normal, radiosity; sums zeroed)."""
     n = order.shape[0]
     for i in prange(n):
         v = order[i]
         for c in range(3):
             cell_k[i, c] = cell[v, c]
-            cen_k[i, c] = float(cell[v, c]) + float(frac[v, c])
-            nrm_k[i, c] = normal[v, c]
-            rad_k[i, c] = radiosity[v, c]
+            rec[i, c] = float(cell[v, c]) + float(frac[v, c])
+            rec[i, 3 + c] = normal[v, c]
+            rec[i, 8 + c] = 0.0
+            rec[i, 12 + c] = radiosity[v, c]
+        rec[i, 11] = 0.0
 
 
 def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, radiosity, vectors, axes,
@@ -255,36 +258,29 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, rad
         return gathered, quad
     scratch = _scratch(n, starts.shape[1] - 1, max_group, table_size, hashed)
     cell_k = np.empty((n, 3), np.int32)
-    cen_k = np.empty((n, 3))
-    nrm_k = np.empty((n, 3))
-    rad_k = np.empty((n, 3), np.float32)
-    g_k = np.empty((n, 3))
-    q_k = np.empty(n)
+    rec = np.empty((n, 16))
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
         if len(fams) == 0:
             continue
-        _gather_permuted(orders[k], cell, frac, normal, radiosity, cell_k, cen_k, nrm_k, rad_k)
-        g_k[:] = 0.0
-        q_k[:] = 0.0
-        _families(fams, starts[k], cell_k, cen_k, nrm_k, rad_k, g_k, q_k, cell_lo, cell_hi, vectors, units,
-                  weights, offsets, k, tau, kappa, table_size, *scratch)
-        _scatter_add(orders[k], g_k, q_k, gathered, quad)
+        _gather_permuted(orders[k], cell, frac, normal, radiosity, cell_k, rec)
+        _families(fams, starts[k], cell_k, rec, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
+                  table_size, *scratch)
+        _scatter_add(orders[k], rec, gathered, quad)
     return gathered, quad
 
 
 def _scratch(n, ng, max_group, table_size, hashed):
     """Per sweep (2): line table (head, last; hashed keys only when hashing),
-    linked list, cos weights, touched slots, the cell's sort buffer."""
+    linked list, touched slots, the cell's sort buffer."""
     return (np.full((2, table_size), UNTOUCHED, np.int32), np.full((2, table_size), EMPTY, np.int32),
             np.full((2, table_size if hashed else 1), EMPTY, np.int64), np.empty((2, n), np.int32),
-            np.empty((2, n)),
             np.empty((2, ng), np.int32), np.empty((2, max_group), np.int64), np.empty((2, max_group)))
 
 
 @njit(cache=True, parallel=True)
-def _families(fams, st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, cell_lo, cell_hi, vectors, units, weights, offsets,
-              k, tau, kappa, size, heads, lasts, hkeys, nxts, cosws, toucheds, bufs, bkeys):
+def _families(fams, st, cell_k, rec, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, size,
+              heads, lasts, hkeys, nxts, toucheds, bufs, bkeys):
     k1, k2 = (k + 1) % 3, (k + 2) % 3
     for fi in range(fams.shape[0]):
         f = fams[fi]
@@ -293,17 +289,17 @@ def _families(fams, st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, cell_lo, cell_hi,
         pmin, P, qmin, Q = _line_bounds(cell_lo, cell_hi, k, k1, k2, A, B, C, mu, mu2)
         dense = P * Q <= size
         for sweep in prange(2):
-            _sweep(st, cell_k, cen_k, nrm_k, rad_k, g_k, q_k, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1],
-                   units[f, 2], weights[f], sweep == 0, tau, kappa, dense, pmin, P, qmin, heads[sweep],
-                   lasts[sweep], hkeys[sweep], size - 1, nxts[sweep], cosws[sweep], toucheds[sweep], bufs[sweep],
-                   bkeys[sweep])
+            _sweep(st, cell_k, rec, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f],
+                   sweep == 0, tau, kappa, dense, pmin, P, qmin, heads[sweep], lasts[sweep], hkeys[sweep], size - 1,
+                   nxts[sweep], toucheds[sweep], bufs[sweep], bkeys[sweep])
 
 
 @njit(cache=True, parallel=True)
-def _scatter_add(order, g_k, q_k, gathered, quad):
+def _scatter_add(order, rec, gathered, quad):
+    """Adds an axis's sums back in voxel order."""
     for i in prange(order.shape[0]):
         v = order[i]
-        gathered[v, 0] += g_k[i, 0]
-        gathered[v, 1] += g_k[i, 1]
-        gathered[v, 2] += g_k[i, 2]
-        quad[v] += q_k[i]
+        gathered[v, 0] += rec[i, 8]
+        gathered[v, 1] += rec[i, 9]
+        gathered[v, 2] += rec[i, 10]
+        quad[v] += rec[i, 11]
