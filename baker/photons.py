@@ -151,14 +151,15 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, n, rot, eps,
 
 
 @njit(cache=True, parallel=True)
-def find_voxels(points, ok, hit_tri, hit_back, piece_key, piece_voxel, side_start, back_side, origin, h, dims):
+def find_voxels(points, ok, hit_tri, hit_back, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
+                origin, h, dims):
     """Voxel of each photon hit (the piece of the side it hit), -1 if none."""
     n = points.shape[0]
     out = np.full(n, -1, np.int64)
     for i in prange(n):
         if ok[i]:
             out[i] = voxel_of_hit(hit_tri[i], hit_back[i], points[i, 0], points[i, 1], points[i, 2], piece_key,
-                                  piece_voxel, side_start, back_side, origin, h, dims)
+                                  piece_voxel, piece_plane, piece_sign, side_start, back_side, origin, h, dims)
     return out
 
 
@@ -199,8 +200,8 @@ def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0):
     eps = 1e-7 * float(np.abs(scene.vertices).max() or 1.0)
     pts, sn, pw, ok, tri, back = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, int(n), rot, eps,
                                        center, radius)
-    vi = find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.side_start, voxels.back_side,
-                     voxels.origin, voxels.cell_size, voxels.dims)
+    vi = find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.piece_plane, voxels.piece_sign,
+                     voxels.side_start, voxels.back_side, voxels.origin, voxels.cell_size, voxels.dims)
     good = vi >= 0
     dep = np.stack([np.bincount(vi[good], weights=pw[good, c], minlength=nv) for c in range(3)], axis=1)
     lum = pw[good].sum(axis=1)

@@ -28,6 +28,8 @@ class LineSweeper:
         # float32 fraction (exact to 1e-7 cell at any grid size); float32 normals
         self.frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
         self.normal = np.ascontiguousarray(voxels.normal, np.float32)
+        # the plane of a surface that cut a voxel's pieces (grid units) and the voxel's side of it
+        self.cut = np.concatenate([voxels.cut_plane, voxels.cut_sign[:, None].astype(np.float64)], axis=1)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
@@ -98,7 +100,7 @@ class LineSweeper:
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
         return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.frac,
-                                  self.normal, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
+                                  self.normal, self.cut, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
                                   self.max_group, *self.line_table(dirs))
 

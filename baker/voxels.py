@@ -14,9 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import BudgetError
-from .kernels.voxelize import clip_pieces, count_candidates, merge_sheets, side_signatures, textured_albedo
+from .kernels.voxelize import (clip_pieces, count_candidates, find_straddlers, merge_sheets, separating_planes,
+                               side_signatures, split_pieces, textured_albedo)
 
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
+MIN_SPLIT_PART = 0.01    # in cells^2: a piece is cut by another surface's plane when both parts are larger
 MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
@@ -48,8 +50,12 @@ class Voxels:
     albedo: np.ndarray
     emission: np.ndarray
     material: np.ndarray
+    cut_plane: np.ndarray     # (n, 4) plane (normal, offset; grid units) of the surface that cut the voxel's pieces
+    cut_sign: np.ndarray      # (n,) int8 +1 / -1: the voxel lies in front of / behind it; 0: not cut
     piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
     piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
+    piece_plane: np.ndarray   # (m, 4) plane (normal, offset; grid units) that cut a piece in two, else 0
+    piece_sign: np.ndarray    # (m,) int8 +1 / -1: the part in front of / behind that plane; 0: not cut
     side_start: np.ndarray    # (ns + 1,) pieces of side s are side_start[s] .. side_start[s+1] - 1
     back_side: np.ndarray     # (nt,) int32 side index of a triangle's back (-1: one-sided)
 
@@ -59,8 +65,9 @@ class Voxels:
     @property
     def nbytes(self) -> int:
         return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
-                                                     "albedo", "emission", "material", "piece_key",
-                                                     "piece_voxel", "side_start", "back_side"))
+                                                     "albedo", "emission", "material", "cut_plane", "cut_sign", "piece_key",
+                                                     "piece_voxel", "piece_plane", "piece_sign", "side_start",
+                                                     "back_side"))
 
     def lookup(self, cell_key, facing):
         """Voxel index range [lo, hi) of (cell key, facing); empty if none."""
@@ -129,14 +136,60 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     clip_pieces(corners, sides_tri, sides_sign, origin, inv_h, offsets, dims, p_cell, p_area, p_cen, p_nrm, p_side)
     keep = p_area > MIN_PIECE_AREA
     p_cell, p_area, p_cen, p_nrm, p_side = p_cell[keep], p_area[keep], p_cen[keep], p_nrm[keep], p_side[keep]
-    key = (p_cell[:, 0].astype(np.int64) * dims[1] + p_cell[:, 1]) * dims[2] + p_cell[:, 2]
-    axis = np.argmax(np.abs(p_nrm), axis=1)
-    facing = (2 * axis + (p_nrm[np.arange(len(axis)), axis] < 0)).astype(np.int8)
+
+    def keys_and_facings():
+        k = (p_cell[:, 0].astype(np.int64) * dims[1] + p_cell[:, 1]) * dims[2] + p_cell[:, 2]
+        ax = np.argmax(np.abs(p_nrm), axis=1)
+        return k, (2 * ax + (p_nrm[np.arange(len(ax)), ax] < 0)).astype(np.int8), ax
+    key, facing, axis = keys_and_facings()
+    # straddling pieces (a floor running under a wall): cut by the other surface's plane
+    p_tri = sides_tri[p_side]
+    cut = find_straddlers(np.argsort(key, kind="stable"), key, facing, p_tri, p_cell, p_area, p_cen, p_nrm,
+                          corners, origin, inv_h, MIN_SPLIT_PART)
+    n0 = len(p_area)
+    split = np.nonzero(cut >= 0)[0]
+    p_plane = np.zeros((n0 + len(split), 4))
+    p_sign = np.zeros(n0 + len(split), np.int8)
+    if len(split):
+        extra = np.full(n0, -1, np.int64)
+        extra[split] = n0 + np.arange(len(split))
+        p_cell = np.concatenate([p_cell, p_cell[split]])
+        p_nrm = np.concatenate([p_nrm, p_nrm[split]])
+        p_side = np.concatenate([p_side, p_side[split]])
+        p_area = np.concatenate([p_area, np.zeros(len(split))])
+        p_cen = np.concatenate([p_cen, np.zeros((len(split), 3))])
+        split_pieces(cut, p_tri, p_cell, p_area, p_cen, p_nrm, corners, origin, inv_h, extra, p_area, p_cen,
+                     p_plane, p_sign)
+        key, facing, axis = keys_and_facings()
+    # cells crossed by a surface: where a piece was cut (a floor running under a wall) or where a piece's
+    # plane separates others (a wall between two floors), every other piece not parallel to that plane
+    # takes its side of it; voxels then know the surface stands there (kernels/propagate.py, _cut_between)
+    cell_plane = np.zeros((len(p_area), 4))
+    has = np.zeros(len(p_area), np.bool_)
+    separating_planes(np.argsort(key, kind="stable"), key, sides_tri[p_side], p_area, p_cen, p_nrm, SHEET_GAP,
+                      cell_plane, has)
+    if (p_sign != 0).any():
+        cut_keys, first = np.unique(key[p_sign != 0], return_index=True)
+        planes = p_plane[p_sign != 0][first]
+        where = np.minimum(np.searchsorted(cut_keys, key), len(cut_keys) - 1)
+        in_cut = cut_keys[where] == key
+        cell_plane[in_cut] = planes[where[in_cut]]
+        has |= in_cut
+    idx = np.nonzero(has & (p_sign == 0))[0]
+    pl = cell_plane[idx]
+    nrm = p_nrm[idx] / np.linalg.norm(p_nrm[idx], axis=1, keepdims=True)
+    crossing = np.abs(np.einsum("ij,ij->i", nrm, pl[:, :3])) < 0.9  # the crossing surface itself is not cut
+    idx, pl = idx[crossing], pl[crossing]
+    side = np.einsum("ij,ij->i", p_cen[idx] / p_area[idx, None], pl[:, :3]) - pl[:, 3]
+    p_plane[idx] = pl
+    p_sign[idx] = np.where(side >= 0, 1, -1)
     along = p_cen[np.arange(len(axis)), axis] / p_area
     by_cell = np.argsort(key, kind="stable")
     sig = side_signatures(by_cell, key, facing, p_area, p_cen, p_nrm, SHEET_GAP)
-    order = np.lexsort((along, sig, facing, key))
-    vox_of = merge_sheets(order, key, facing, sig, along, p_area, p_cen, p_nrm, SHEET_GAP)
+    # the two parts of a cut piece never merge: fold the part into the signature
+    group = np.unique(np.stack([sig, p_sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
+    order = np.lexsort((along, group, facing, key))
+    vox_of = merge_sheets(order, key, facing, group, along, p_area, p_cen, p_nrm, SHEET_GAP)
     n = int(vox_of[-1]) + 1 if len(vox_of) else 0
     # per-voxel sums in sorted piece order (deterministic)
     tri = sides_tri[p_side]
@@ -168,6 +221,8 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     starts = np.ones(len(vox_of), bool)
     starts[1:] = vox_of[1:] != vox_of[:-1]
     cell = p_cell[order][starts]
+    cut_plane = p_plane[order][starts]
+    cut_sign = p_sign[order][starts]
     nl = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0)
     # (side, cell) -> voxel: where a photon or a camera ray that hit a
@@ -183,5 +238,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     return Voxels(origin=origin, cell_size=h, dims=dims, cell=cell.astype(np.int32),
                   facing=facing[order][starts], key=key[order][starts], area=area * h * h,
                   normal=nrm, centroid=origin + cen / area[:, None] * h, albedo=alb / area[:, None],
-                  emission=em / area[:, None], material=material, piece_key=key_sorted[by_side],
-                  piece_voxel=vox_of[by_side].astype(np.int64), side_start=side_start, back_side=back_side)
+                  emission=em / area[:, None], material=material, cut_plane=cut_plane, cut_sign=cut_sign,
+                  piece_key=key_sorted[by_side],
+                  piece_voxel=vox_of[by_side].astype(np.int64), piece_plane=p_plane[order][by_side],
+                  piece_sign=p_sign[order][by_side], side_start=side_start, back_side=back_side)

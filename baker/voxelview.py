@@ -14,8 +14,8 @@ from .render import primary_ray
 
 
 @njit(cache=True, parallel=True)
-def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, side_start, back_side, origin, h, dims, width,
-          height, row0, row1, out):
+def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
+          origin, h, dims, width, height, row0, row1, out):
     n = (row1 - row0) * width
     for k in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
@@ -30,8 +30,8 @@ def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, side_start
         back = nx * dx + ny * dy + nz * dz > 0.0
         if back and not double[mat_of[tri]]:
             continue  # a one-sided back: black
-        vi = voxel_of_hit(tri, back, ox + t * dx, oy + t * dy, oz + t * dz, piece_key, piece_voxel, side_start,
-                          back_side, origin, h, dims)
+        vi = voxel_of_hit(tri, back, ox + t * dx, oy + t * dy, oz + t * dz, piece_key, piece_voxel, piece_plane,
+                          piece_sign, side_start, back_side, origin, h, dims)
         if vi >= 0:
             out[y, x, 0] = radiance[vi, 0]
             out[y, x, 1] = radiance[vi, 1]
@@ -44,5 +44,6 @@ def render_voxels(bvh, surfaces, solution, camera_arr, width, height, progress=N
     v = solution.voxels
     return render_bands(_rows, width, height,
                         (bvh.arrays, surfaces.arrays[3], surfaces.arrays[0], camera_arr,
-                         np.ascontiguousarray(solution.radiance), v.piece_key, v.piece_voxel, v.side_start,
-                         v.back_side, v.origin, v.cell_size, v.dims, int(width), int(height)), progress)
+                         np.ascontiguousarray(solution.radiance), v.piece_key, v.piece_voxel, v.piece_plane,
+                         v.piece_sign, v.side_start, v.back_side, v.origin, v.cell_size, v.dims, int(width),
+                         int(height)), progress)

@@ -48,13 +48,15 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
-                    kappa=1.0, trace=None):
+                    kappa=1.0, trace=None, cut=None):
     """Plain-Python linear propagation with the visibility rule of METHOD.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
     +1 before -1) and runs the waiting-list rule along s and -s.
-    Returns (gathered (n, 3), S (n,)); with trace=x, also the list of
-    (family, sign, source voxel) voxel x gathered from."""
+    cut (n, 5): the plane and side of a surface that cut a voxel (cells;
+    the kernel's CUT_REACH = 3 cells). Returns (gathered (n, 3), S (n,));
+    with trace=x, also the list of (family, sign, source voxel) voxel x
+    gathered from."""
     n = len(cell)
     gathered = np.zeros((n, 3))
     quad = np.zeros(n)
@@ -74,6 +76,17 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                 def order_key(v):
                     o = float(normal[v] @ u)
                     return (sign * int(cell[v][k]), float(centroid[v] @ u), 0 if o > 0 else 1)
+                def cut_between(a, b):
+                    sign = cut[a][4]
+                    if sign == 0:
+                        return False
+                    n_, d_ = cut[a][:3], cut[a][3]
+                    sa, sb = centroid[a] @ n_ - d_, centroid[b] @ n_ - d_
+                    if sb * sign >= -tau * h or sa == sb:
+                        return False
+                    p = centroid[a] + (centroid[b] - centroid[a]) * (sa / (sa - sb))
+                    return bool(np.all(p >= cell[a] - 3.0) and np.all(p <= cell[a] + 4.0))
+
                 def hidden_by(q, x, y):
                     sx = (centroid[x] - centroid[q]) @ normal[q]
                     sy = (centroid[y] - centroid[q]) @ normal[q]
@@ -94,6 +107,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                             if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h:
                                 between = any(hidden_by(q, x, y) for q in members
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
+                                if cut is not None:
+                                    between = between or cut_between(y, x) or cut_between(x, y)
                                 if not between:
                                     gathered[x] += radiosity[y] * float(normal[x] @ u) * weights[f]
                                     if x == trace:

@@ -6,9 +6,11 @@ from numba import njit, prange
 
 
 @njit(cache=True)
-def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, side_start, back_side, origin, h, dims):
+def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
+                 origin, h, dims):
     """Voxel holding the point p that a ray hit on scene triangle `tri`
-    (its back side if `back`): the voxel of that side's piece in p's cell.
+    (its back side if `back`): the voxel of that side's piece in p's cell
+    (of the part on p's side, where another surface's plane cut the piece).
     A point on a cell face may round into a neighbour holding no piece of
     this side: then the side's piece in the nearest of the 26 neighbours.
     -1 for the back of a one-sided triangle."""
@@ -30,6 +32,13 @@ def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, side_start, back
                     key = (np.int64(x) * dims[1] + y) * dims[2] + z
                     i = a + np.searchsorted(piece_key[a:b], key)
                     if i < b and piece_key[i] == key:
+                        if piece_sign[i] != 0:
+                            # a cut piece: its two parts are i and i + 1; take p's side
+                            gx, gy, gz = (px - origin[0]) / h, (py - origin[1]) / h, (pz - origin[2]) / h
+                            pl = piece_plane[i]
+                            side = 1 if gx * pl[0] + gy * pl[1] + gz * pl[2] - pl[3] >= 0.0 else -1
+                            if piece_sign[i] != side and i + 1 < b and piece_key[i + 1] == key:
+                                i += 1
                         if ring == 0:
                             return piece_voxel[i]
                         dd = ((x + 0.5) * h + origin[0] - px) ** 2 + ((y + 0.5) * h + origin[1] - py) ** 2 + \

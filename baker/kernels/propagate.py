@@ -102,15 +102,40 @@ def _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
     return False
 
 
+CUT_REACH = 3.0  # cells around a cut voxel's cell where its cutting surface is taken to stand
+
+
+@njit(cache=True, inline="always")
+def _cut_between(a, b, rec, cell, tau_h):
+    """Voxel a was made by cutting its pieces with another surface's plane
+    (a wall standing on a floor, a floor running under a wall): if b lies
+    on the other side of that plane and the segment a-b crosses it within
+    CUT_REACH cells of a's cell, that surface stands between them."""
+    sign = rec[a, 20]
+    if sign == 0.0:
+        return False
+    nx, ny, nz, d = rec[a, 16], rec[a, 17], rec[a, 18], rec[a, 19]
+    sa = rec[a, 0] * nx + rec[a, 1] * ny + rec[a, 2] * nz - d
+    sb = rec[b, 0] * nx + rec[b, 1] * ny + rec[b, 2] * nz - d
+    if sb * sign >= -tau_h or sa == sb:
+        return False
+    lam = sa / (sa - sb)
+    for c in range(3):
+        p = rec[a, c] + (rec[b, c] - rec[a, c]) * lam
+        if p < cell[a, c] - CUT_REACH or p > cell[a, c] + 1.0 + CUT_REACH:
+            return False
+    return True
+
+
 @njit(cache=True)
 def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau, kappa, dense, pmin,
            P, qmin, head, last, hkeys, mask, nxt, touched, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over voxels
     stored in this axis's order (index = position in the order). Lengths
-    are in cells. rec (n, 16) holds, per voxel, what a sweep touches
+    are in cells. rec (n, 21) holds, per voxel, what a sweep touches
     together: centroid 0-2, normal 3-5, cos weight 6 (forwards) or 7
-    (backwards), gathered 8-10, S 11, radiosity 12-14: a voxel revisited
-    long after it joined a waiting list costs one or two cache lines."""
+    (backwards), gathered 8-10, S 11, radiosity 12-14, the cut plane 16-19
+    and the voxel's side of it 20 (0: not cut)."""
     ng = starts.shape[0] - 1
     cw = 6 if forward else 7
     if not forward:
@@ -170,7 +195,8 @@ def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, f
                     nx_ = nxt[x]
                     d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
                     if d >= -tau_h:
-                        if m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
+                        if (m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h)) and \
+                                not _cut_between(y, x, rec, cell, tau_h) and not _cut_between(x, y, rec, cell, tau_h):
                             w = rec[x, cw]
                             rec[x, 8] += rec[y, 12] * w
                             rec[x, 9] += rec[y, 13] * w
@@ -221,7 +247,7 @@ def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, f
 
 
 @njit(cache=True, parallel=True)
-def _gather_permuted(order, cell, frac, normal, radiosity, cell_k, rec):
+def _gather_permuted(order, cell, frac, normal, cut, radiosity, cell_k, rec):
     """Lays the voxel data out in axis order: cell (int32) and the record
     (centroid = cell + float32 fraction, normal, radiosity; sums zeroed)."""
     n = order.shape[0]
@@ -234,14 +260,18 @@ def _gather_permuted(order, cell, frac, normal, radiosity, cell_k, rec):
             rec[i, 8 + c] = 0.0
             rec[i, 12 + c] = radiosity[v, c]
         rec[i, 11] = 0.0
+        for c in range(5):
+            rec[i, 16 + c] = cut[v, c]
 
 
-def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, radiosity, vectors, axes,
+def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, cut, radiosity, vectors, axes,
                        units, weights, offsets, tau, kappa, max_group, table_size, hashed):
     """Gathers radiosity over every family of a direction set.
 
     Lengths in cells: frac (n, 3) float32 the centroid's position within its
     cell (centroid = cell + frac, grid coordinates), normal (n, 3) float32,
+    cut (n, 5) the plane (normal, offset) of a surface that cut the voxel's
+    pieces and the voxel's side of it (0: none),
     tau and kappa in cells. orders (3, n) int32: voxel order with axis 0, 1,
     2 major; starts (3, ng+1) the cell boundaries in each order; cell_lo,
     cell_hi (3,) the cells' bounding box; table_size the line table's size
@@ -258,12 +288,12 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, rad
         return gathered, quad
     scratch = _scratch(n, starts.shape[1] - 1, max_group, table_size, hashed)
     cell_k = np.empty((n, 3), np.int32)
-    rec = np.empty((n, 16))
+    rec = np.empty((n, 21))
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
         if len(fams) == 0:
             continue
-        _gather_permuted(orders[k], cell, frac, normal, radiosity, cell_k, rec)
+        _gather_permuted(orders[k], cell, frac, normal, cut, radiosity, cell_k, rec)
         _families(fams, starts[k], cell_k, rec, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
                   table_size, *scratch)
         _scatter_add(orders[k], rec, gathered, quad)

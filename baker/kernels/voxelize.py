@@ -326,3 +326,172 @@ def side_signatures(order, key, facing, area, centroid, normal, tol):
                 sig[p] = s
         a = b
     return sig
+
+
+@njit(cache=True)
+def _piece_polygon(corners, tri, sign_dummy, origin, inv_h, cell):
+    """The polygon of scene triangle `tri` clipped to `cell` (grid units)."""
+    px = np.empty(MAX_POLY)
+    py = np.empty(MAX_POLY)
+    pz = np.empty(MAX_POLY)
+    for c in range(3):
+        px[c] = (corners[tri, c, 0] - origin[0]) * inv_h
+        py[c] = (corners[tri, c, 1] - origin[1]) * inv_h
+        pz[c] = (corners[tri, c, 2] - origin[2]) * inv_h
+    m = 3
+    qx, qy, qz = px, py, pz
+    for axis in range(3):
+        if m == 0:
+            break
+        qx, qy, qz, m = _clip(qx, qy, qz, m, axis, float(cell[axis]), True)
+        if m == 0:
+            break
+        qx, qy, qz, m = _clip(qx, qy, qz, m, axis, float(cell[axis] + 1), False)
+    return qx, qy, qz, m
+
+
+@njit(cache=True)
+def _clip_plane(px, py, pz, n, nx, ny, nz, d, keep_front):
+    """Keep the part of polygon with (p . n - d) >= 0 (keep_front) or <= 0."""
+    ox = np.empty(MAX_POLY)
+    oy = np.empty(MAX_POLY)
+    oz = np.empty(MAX_POLY)
+    m = 0
+    for i in range(n):
+        j = (i + 1) % n
+        ci = px[i] * nx + py[i] * ny + pz[i] * nz - d
+        cj = px[j] * nx + py[j] * ny + pz[j] * nz - d
+        if not keep_front:
+            ci, cj = -ci, -cj
+        if ci >= 0.0:
+            ox[m], oy[m], oz[m] = px[i], py[i], pz[i]
+            m += 1
+        if (ci >= 0.0) != (cj >= 0.0) and m < MAX_POLY:
+            t = ci / (ci - cj)
+            ox[m] = px[i] + t * (px[j] - px[i])
+            oy[m] = py[i] + t * (py[j] - py[i])
+            oz[m] = pz[i] + t * (pz[j] - pz[i])
+            m += 1
+    return ox, oy, oz, m
+
+
+@njit(cache=True)
+def _area_centroid(qx, qy, qz, m):
+    area = 0.0
+    cx = cy = cz = 0.0
+    for v in range(1, m - 1):
+        ux, uy, uz = qx[v] - qx[0], qy[v] - qy[0], qz[v] - qz[0]
+        wx, wy, wz = qx[v + 1] - qx[0], qy[v + 1] - qy[0], qz[v + 1] - qz[0]
+        crx, cry, crz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        a = 0.5 * math.sqrt(crx * crx + cry * cry + crz * crz)
+        area += a
+        cx += a * (qx[0] + qx[v] + qx[v + 1]) / 3.0
+        cy += a * (qy[0] + qy[v] + qy[v + 1]) / 3.0
+        cz += a * (qz[0] + qz[v] + qz[v + 1]) / 3.0
+    return area, cx, cy, cz
+
+
+@njit(cache=True)
+def find_straddlers(by_cell, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
+                    min_part):
+    """For each piece: the piece of another facing and another triangle in
+    the same cell whose plane cuts it into two parts of at least min_part
+    cells^2 each (a floor running under a wall), else -1. One cut per piece:
+    the one that leaves the larger smaller part."""
+    n = by_cell.shape[0]
+    cut = np.full(n, -1, np.int64)
+    a = 0
+    while a < n:
+        b = a + 1
+        while b < n and key[by_cell[b]] == key[by_cell[a]]:
+            b += 1
+        if b - a > 1:
+            for i in range(a, b):
+                p = by_cell[i]
+                best, best_part = -1, min_part
+                qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], 0, origin, inv_h, piece_cell[p])
+                for j in range(a, b):
+                    q = by_cell[j]
+                    if facing[q] == facing[p] or piece_tri[q] == piece_tri[p]:
+                        continue
+                    nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
+                    d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
+                    lo, hi = np.inf, -np.inf
+                    for v in range(m):
+                        s = qx[v] * nx + qy[v] * ny + qz[v] * nz - d
+                        lo = min(lo, s)
+                        hi = max(hi, s)
+                    if lo >= 0.0 or hi <= 0.0:
+                        continue
+                    fx, fy, fz, fm = _clip_plane(qx, qy, qz, m, nx, ny, nz, d, True)
+                    af, _, _, _ = _area_centroid(fx, fy, fz, fm)
+                    part = min(af, area[p] - af)
+                    if part > best_part:
+                        best, best_part = q, part
+                cut[p] = best
+        a = b
+    return cut
+
+
+@njit(cache=True)
+def split_pieces(cut, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h, extra_index,
+                 out_area, out_cen, out_plane, out_sign):
+    """Cuts each piece p with cut[p] >= 0 by that piece's plane: the front
+    part stays in slot p (sign +1), the back part goes to slot
+    extra_index[p] (sign -1); both remember the plane (normal, offset, grid
+    units) so that a hit point can be told which part it lies on."""
+    n = cut.shape[0]
+    for p in range(n):
+        q = cut[p]
+        if q < 0:
+            continue
+        qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], 0, origin, inv_h, piece_cell[p])
+        nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
+        d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
+        for part in range(2):
+            fx, fy, fz, fm = _clip_plane(qx, qy, qz, m, nx, ny, nz, d, part == 0)
+            a, cx, cy, cz = _area_centroid(fx, fy, fz, fm)
+            slot = p if part == 0 else extra_index[p]
+            out_area[slot] = a
+            out_cen[slot, 0], out_cen[slot, 1], out_cen[slot, 2] = cx, cy, cz
+            out_plane[slot, 0], out_plane[slot, 1], out_plane[slot, 2], out_plane[slot, 3] = nx, ny, nz, d
+            out_sign[slot] = 1 if part == 0 else -1
+
+
+@njit(cache=True)
+def separating_planes(by_cell, key, piece_tri, area, centroid, normal, tol, planes, has):
+    """Cells where the plane of a piece q has two pieces of other triangles,
+    not parallel to it, clearly on both sides (beyond tol cells): a surface
+    standing between them inside the cell (a wall between two floors).
+    Writes q's plane (normal, offset; grid units) into planes[i] and True
+    into has[i] for every piece i of such a cell."""
+    n = by_cell.shape[0]
+    a = 0
+    while a < n:
+        b = a + 1
+        while b < n and key[by_cell[b]] == key[by_cell[a]]:
+            b += 1
+        if b - a > 2:
+            for j in range(a, b):
+                q = by_cell[j]
+                nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
+                d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
+                front = back = False
+                for i in range(a, b):
+                    p = by_cell[i]
+                    if piece_tri[p] == piece_tri[q]:
+                        continue
+                    if abs(normal[p, 0] * nx + normal[p, 1] * ny + normal[p, 2] * nz) >= 0.9:
+                        continue
+                    sd = (centroid[p, 0] * nx + centroid[p, 1] * ny + centroid[p, 2] * nz) / area[p] - d
+                    if sd > tol:
+                        front = True
+                    elif sd < -tol:
+                        back = True
+                if front and back:
+                    for i in range(a, b):
+                        p = by_cell[i]
+                        planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3] = nx, ny, nz, d
+                        has[p] = True
+                    break
+        a = b
