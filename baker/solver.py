@@ -73,7 +73,7 @@ def first_bounce_irradiance(vox, deposited):
     from .kernels.lookup import pool_parents
     h1 = deposited / vox.area[:, None]
     parent = pool_parents(vox.key, vox.facing, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
-                          vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2)
+                          vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2, vox.cut_plane, vox.cut_sign, vox.origin)
     tiny = np.nonzero(parent >= 0)[0]
     if len(tiny):
         p = parent[tiny]

@@ -19,6 +19,7 @@ from .kernels.voxelize import (clip_pieces, count_candidates, find_straddlers, m
 
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
 MIN_SPLIT_PART = 0.01    # in cells^2: a piece is cut by another surface's plane when both parts are larger
+MIN_SEPARATION = 0.01    # in cells: pieces this far on both sides of a surface's plane are told apart
 MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
@@ -166,7 +167,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     # takes its side of it; voxels then know the surface stands there (kernels/propagate.py, _cut_between)
     cell_plane = np.zeros((len(p_area), 4))
     has = np.zeros(len(p_area), np.bool_)
-    separating_planes(np.argsort(key, kind="stable"), key, sides_tri[p_side], p_area, p_cen, p_nrm, SHEET_GAP,
+    separating_planes(np.argsort(key, kind="stable"), key, sides_tri[p_side], p_area, p_cen, p_nrm, MIN_SEPARATION,
                       cell_plane, has)
     if (p_sign != 0).any():
         cut_keys, first = np.unique(key[p_sign != 0], return_index=True)

@@ -84,6 +84,10 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     sa, sb = centroid[a] @ n_ - d_, centroid[b] @ n_ - d_
                     if sb * sign >= -tau * h or sa == sb:
                         return False
+                    if cut[b][4] != 0:
+                        dot = float(n_ @ cut[b][:3])
+                        if abs(dot) > 0.999 and abs(d_ - dot * cut[b][3]) < tau * h:
+                            return True
                     p = centroid[a] + (centroid[b] - centroid[a]) * (sa / (sa - sb))
                     return bool(np.all(p >= cell[a] - 3.0) and np.all(p <= cell[a] + 4.0))
 
@@ -109,6 +113,11 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
                                 if cut is not None:
                                     between = between or cut_between(y, x) or cut_between(x, y)
+                                    d_xy = (centroid[x] - centroid[y]) @ normal[y]
+                                    if d_xy < 0 and cut[x][4] != 0:  # x's cell is cut by y's own plane
+                                        dot = float(cut[x][:3] @ normal[y])
+                                        same = abs(dot) > 0.999 and abs(cut[x][3] - dot * (centroid[y] @ normal[y])) < tau * h
+                                        between = between or same
                                 if not between:
                                     gathered[x] += radiosity[y] * float(normal[x] @ u) * weights[f]
                                     if x == trace:

@@ -48,11 +48,24 @@ def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, piece_plane, pie
     return best
 
 
+@njit(cache=True, inline="always")
+def _same_side(a, b, vcentroid, cut_plane, cut_sign, origin, h):
+    """Does b lie on a's side of the surface that cut a's cell (if any)?"""
+    if cut_sign[a] == 0:
+        return True
+    s = 0.0
+    for c in range(3):
+        s += (vcentroid[b, c] - origin[c]) / h * cut_plane[a, c]
+    s -= cut_plane[a, 3]
+    return (s >= 0.0) == (cut_sign[a] > 0)
+
+
 @njit(cache=True, parallel=True)
-def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_area):
+def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_area, cut_plane, cut_sign, origin):
     """For each voxel smaller than min_area: the largest voxel of the same
     surface around it (same facing, normals within ~25 degrees, planes
-    within h / 4, in its cell or the 26 neighbours), else -1. Photon
+    within h / 4, in its cell or the 26 neighbours, on the same side of any
+    surface cutting either one's cell), else -1. Photon
     estimates of tiny voxels (a triangle grazing a cell corner) are pooled
     with it: one photon in a 1e-6-cell sliver would otherwise be a spike."""
     n = vkey.shape[0]
@@ -79,7 +92,9 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
                         plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
                             (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
                             (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                        if cos > 0.9 and abs(plane) < 0.25 * h:
+                        if cos > 0.9 and abs(plane) < 0.25 * h and _same_side(i, j, vcentroid, cut_plane, cut_sign,
+                                                                                origin, h) \
+                                and _same_side(j, i, vcentroid, cut_plane, cut_sign, origin, h):
                             best, best_a = j, varea[j]
         parent[i] = best
     return parent

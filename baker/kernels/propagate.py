@@ -106,11 +106,25 @@ CUT_REACH = 3.0  # cells around a cut voxel's cell where its cutting surface is 
 
 
 @njit(cache=True, inline="always")
+def _cut_by(x, y, rec, tau_h):
+    """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
+    Then x, behind y's plane even within tau, sees y's back, not its face."""
+    if rec[x, 20] == 0.0:
+        return False
+    dot = rec[x, 16] * rec[y, 3] + rec[x, 17] * rec[y, 4] + rec[x, 18] * rec[y, 5]
+    if abs(dot) <= 0.999:
+        return False
+    dy = rec[y, 0] * rec[y, 3] + rec[y, 1] * rec[y, 4] + rec[y, 2] * rec[y, 5]
+    return abs(rec[x, 19] - dot * dy) < tau_h
+
+
+@njit(cache=True, inline="always")
 def _cut_between(a, b, rec, cell, tau_h):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
     on the other side of that plane and the segment a-b crosses it within
-    CUT_REACH cells of a's cell, that surface stands between them."""
+    CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
+    surface runs past both ends), that surface stands between them."""
     sign = rec[a, 20]
     if sign == 0.0:
         return False
@@ -119,6 +133,10 @@ def _cut_between(a, b, rec, cell, tau_h):
     sb = rec[b, 0] * nx + rec[b, 1] * ny + rec[b, 2] * nz - d
     if sb * sign >= -tau_h or sa == sb:
         return False
+    if rec[b, 20] != 0.0:
+        dot = nx * rec[b, 16] + ny * rec[b, 17] + nz * rec[b, 18]
+        if abs(dot) > 0.999 and abs(d - dot * rec[b, 19]) < tau_h:
+            return True
     lam = sa / (sa - sb)
     for c in range(3):
         p = rec[a, c] + (rec[b, c] - rec[a, c]) * lam
@@ -196,7 +214,8 @@ def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, f
                     d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
                     if d >= -tau_h:
                         if (m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h)) and \
-                                not _cut_between(y, x, rec, cell, tau_h) and not _cut_between(x, y, rec, cell, tau_h):
+                                not _cut_between(y, x, rec, cell, tau_h) and not _cut_between(x, y, rec, cell, tau_h) \
+                                and not (d < 0.0 and _cut_by(x, y, rec, tau_h)):
                             w = rec[x, cw]
                             rec[x, 8] += rec[y, 12] * w
                             rec[x, 9] += rec[y, 13] * w
