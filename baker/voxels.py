@@ -18,7 +18,7 @@ from .kernels.voxelize import (clip_pieces, count_candidates, find_straddlers, m
                                side_signatures, split_pieces, textured_albedo)
 
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
-MIN_SPLIT_PART = 0.01    # in cells^2: a piece is cut by another surface's plane when both parts are larger
+MIN_SPLIT_PART = 1e-6    # in cells^2: a piece is cut by another surface's plane when both parts are larger
 MIN_SEPARATION = 0.01    # in cells: pieces this far on both sides of a surface's plane are told apart
 MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
