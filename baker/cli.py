@@ -76,8 +76,12 @@ def cmd_render(args):
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in (".exr", ".png"):
         raise VoxgiError(f"unsupported image format {ext or '(none)'!r}; use .exr or .png", args.output)
+    if not os.path.isdir(os.path.dirname(os.path.abspath(args.output))):
+        raise VoxgiError("output folder does not exist", args.output)
     if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
+    if args.spp < 1:
+        raise VoxgiError(f"--spp must be at least 1 (got {args.spp})")
     _threads(args.threads)
     stats = Stats("render " + args.method)
     with stats.stage("load"):
@@ -98,10 +102,13 @@ def cmd_render(args):
         from .config import solver_config
         from .solver import solve
         from .voxelview import render_voxels
-        config = solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size, radius=args.radius,
-                               photons=args.photons,
-                               seed=args.seed, threads=args.threads, memory_budget_mb=args.memory_budget,
-                               schedule=args.schedule, tolerance=args.tolerance, max_bounces=args.max_bounces)
+        try:
+            config = solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size,
+                                   radius=args.radius, photons=args.photons, seed=args.seed, threads=args.threads,
+                                   memory_budget_mb=args.memory_budget, schedule=args.schedule,
+                                   tolerance=args.tolerance, max_bounces=args.max_bounces)
+        except ValueError as e:
+            raise VoxgiError(f"invalid solver setting: {e}") from e
         solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
         with stats.stage("voxel_view"), _progress(args.height, "voxel view") as bar:
             image = render_voxels(tree, surf, solution, cam, args.width, args.height, bar.update)

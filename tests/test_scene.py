@@ -159,3 +159,21 @@ def test_box_helper_is_closed_and_oriented():
     centre_dir = np.array([0.5, 1, 1.5]) - c.mean(axis=1)
     assert (np.einsum("ij,ij->i", n, centre_dir) > 0).all()
     assert 0.5 * np.linalg.norm(n, axis=1).sum() == pytest.approx(2 * (2 + 6 + 3))
+
+
+def test_render_refuses_bad_settings_before_work(tmp_path):
+    cases = [
+        (["--camera", "nope"], "no camera named 'nope'"),
+        (["--spp", "0"], "--spp must be at least 1"),
+        (["--method", "voxels", "--radius", "0"], "invalid solver setting"),
+        (["--width", "0"], "out of range"),
+    ]
+    for extra, message in cases:
+        r = subprocess.run([sys.executable, "-m", "baker", "render", "scenes/cornell_box.glb", "-o",
+                            str(tmp_path / "x.png"), *extra], capture_output=True, text=True)
+        assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr, (extra, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 1
+    r = subprocess.run([sys.executable, "-m", "baker", "render", "scenes/cornell_box.glb", "-o",
+                        str(tmp_path / "no" / "x.png")], capture_output=True, text=True)
+    assert r.returncode == 2 and "output folder does not exist" in r.stderr
+    assert not list(tmp_path.iterdir())  # nothing half-written
