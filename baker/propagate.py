@@ -29,7 +29,9 @@ class LineSweeper:
         self.frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
         self.normal = np.ascontiguousarray(voxels.normal, np.float32)
         # the plane of a surface that cut a voxel's pieces (grid units) and the voxel's side of it
-        self.cut = np.concatenate([voxels.cut_plane, voxels.cut_sign[:, None].astype(np.float64)], axis=1)
+        plane = voxels.cut_plane.astype(np.float64)
+        plane[:, 3] += (plane[:, :3] * cell).sum(axis=1)  # back to absolute grid coordinates
+        self.cut = np.concatenate([plane, voxels.cut_sign[:, None].astype(np.float64)], axis=1)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous

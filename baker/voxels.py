@@ -51,11 +51,12 @@ class Voxels:
     albedo: np.ndarray
     emission: np.ndarray
     material: np.ndarray
-    cut_plane: np.ndarray     # (n, 4) plane (normal, offset; grid units) of the surface that cut the voxel's pieces
+    cut_plane: np.ndarray     # (n, 4) float32 plane of the surface that cut the voxel's pieces: normal, and offset
+    #                           in grid units relative to the voxel's cell (n . (g - cell) = offset)
     cut_sign: np.ndarray      # (n,) int8 +1 / -1: the voxel lies in front of / behind it; 0: not cut
     piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
     piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
-    piece_plane: np.ndarray   # (m, 4) plane (normal, offset; grid units) that cut a piece in two, else 0
+    piece_plane: np.ndarray   # (m, 4) float32 plane that cut a piece in two (as cut_plane, relative to its cell)
     piece_sign: np.ndarray    # (m,) int8 +1 / -1: the part in front of / behind that plane; 0: not cut
     side_start: np.ndarray    # (ns + 1,) pieces of side s are side_start[s] .. side_start[s+1] - 1
     back_side: np.ndarray     # (nt,) int32 side index of a triangle's back (-1: one-sided)
@@ -76,6 +77,14 @@ class Voxels:
         hi = np.searchsorted(self.key, cell_key, "right")
         sel = np.arange(lo, hi)[self.facing[lo:hi] == facing]
         return sel
+
+
+def _relative_plane(plane, cell):
+    """(normal, offset) in grid units -> float32 (normal, offset - normal . cell):
+    small numbers, exact enough in float32 on any grid."""
+    out = plane.copy()
+    out[:, 3] -= (plane[:, :3] * cell).sum(axis=1)
+    return out.astype(np.float32)
 
 
 def grid_for(scene, resolution: int = 64, cell_size: float = 0.0):
@@ -222,7 +231,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     starts = np.ones(len(vox_of), bool)
     starts[1:] = vox_of[1:] != vox_of[:-1]
     cell = p_cell[order][starts]
-    cut_plane = p_plane[order][starts]
+    cut_plane = _relative_plane(p_plane[order][starts], p_cell[order][starts])
     cut_sign = p_sign[order][starts]
     nl = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0)
@@ -241,5 +250,6 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
                   normal=nrm, centroid=origin + cen / area[:, None] * h, albedo=alb / area[:, None],
                   emission=em / area[:, None], material=material, cut_plane=cut_plane, cut_sign=cut_sign,
                   piece_key=key_sorted[by_side],
-                  piece_voxel=vox_of[by_side].astype(np.int64), piece_plane=p_plane[order][by_side],
+                  piece_voxel=vox_of[by_side].astype(np.int64),
+                  piece_plane=_relative_plane(p_plane[order][by_side], p_cell[order][by_side]),
                   piece_sign=p_sign[order][by_side], side_start=side_start, back_side=back_side)

@@ -35,8 +35,8 @@ def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, piece_plane, pie
                         if piece_sign[i] != 0:
                             # a cut piece: its two parts are i and i + 1; take p's side
                             gx, gy, gz = (px - origin[0]) / h, (py - origin[1]) / h, (pz - origin[2]) / h
-                            pl = piece_plane[i]
-                            side = 1 if gx * pl[0] + gy * pl[1] + gz * pl[2] - pl[3] >= 0.0 else -1
+                            pl = piece_plane[i]  # offset relative to the cell (x, y, z)
+                            side = 1 if (gx - x) * pl[0] + (gy - y) * pl[1] + (gz - z) * pl[2] - pl[3] >= 0.0 else -1
                             if piece_sign[i] != side and i + 1 < b and piece_key[i + 1] == key:
                                 i += 1
                         if ring == 0:
@@ -49,13 +49,13 @@ def voxel_of_hit(tri, back, px, py, pz, piece_key, piece_voxel, piece_plane, pie
 
 
 @njit(cache=True, inline="always")
-def _same_side(a, b, vcentroid, cut_plane, cut_sign, origin, h):
+def _same_side(a, b, vcell, vcentroid, cut_plane, cut_sign, origin, h):
     """Does b lie on a's side of the surface that cut a's cell (if any)?"""
     if cut_sign[a] == 0:
         return True
     s = 0.0
     for c in range(3):
-        s += (vcentroid[b, c] - origin[c]) / h * cut_plane[a, c]
+        s += ((vcentroid[b, c] - origin[c]) / h - vcell[a, c]) * cut_plane[a, c]
     s -= cut_plane[a, 3]
     return (s >= 0.0) == (cut_sign[a] > 0)
 
@@ -92,9 +92,9 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
                         plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
                             (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
                             (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                        if cos > 0.9 and abs(plane) < 0.25 * h and _same_side(i, j, vcentroid, cut_plane, cut_sign,
+                        if cos > 0.9 and abs(plane) < 0.25 * h and _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign,
                                                                                 origin, h) \
-                                and _same_side(j, i, vcentroid, cut_plane, cut_sign, origin, h):
+                                and _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
                             best, best_a = j, varea[j]
         parent[i] = best
     return parent

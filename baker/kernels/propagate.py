@@ -106,36 +106,36 @@ CUT_REACH = 3.0  # cells around a cut voxel's cell where its cutting surface is 
 
 
 @njit(cache=True, inline="always")
-def _cut_by(x, y, rec, tau_h):
+def _cut_by(x, y, rec, cp, tau_h):
     """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
     Then x, behind y's plane even within tau, sees y's back, not its face."""
-    if rec[x, 20] == 0.0:
+    if rec[x, 15] == 0.0:
         return False
-    dot = rec[x, 16] * rec[y, 3] + rec[x, 17] * rec[y, 4] + rec[x, 18] * rec[y, 5]
+    dot = cp[x, 0] * rec[y, 3] + cp[x, 1] * rec[y, 4] + cp[x, 2] * rec[y, 5]
     if abs(dot) <= 0.999:
         return False
     dy = rec[y, 0] * rec[y, 3] + rec[y, 1] * rec[y, 4] + rec[y, 2] * rec[y, 5]
-    return abs(rec[x, 19] - dot * dy) < tau_h
+    return abs(cp[x, 3] - dot * dy) < tau_h
 
 
 @njit(cache=True, inline="always")
-def _cut_between(a, b, rec, cell, tau_h):
+def _cut_between(a, b, rec, cp, cell, tau_h):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
     on the other side of that plane and the segment a-b crosses it within
     CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
     surface runs past both ends), that surface stands between them."""
-    sign = rec[a, 20]
+    sign = rec[a, 15]
     if sign == 0.0:
         return False
-    nx, ny, nz, d = rec[a, 16], rec[a, 17], rec[a, 18], rec[a, 19]
+    nx, ny, nz, d = cp[a, 0], cp[a, 1], cp[a, 2], cp[a, 3]
     sa = rec[a, 0] * nx + rec[a, 1] * ny + rec[a, 2] * nz - d
     sb = rec[b, 0] * nx + rec[b, 1] * ny + rec[b, 2] * nz - d
     if sb * sign >= -tau_h or sa == sb:
         return False
-    if rec[b, 20] != 0.0:
-        dot = nx * rec[b, 16] + ny * rec[b, 17] + nz * rec[b, 18]
-        if abs(dot) > 0.999 and abs(d - dot * rec[b, 19]) < tau_h:
+    if rec[b, 15] != 0.0:
+        dot = nx * cp[b, 0] + ny * cp[b, 1] + nz * cp[b, 2]
+        if abs(dot) > 0.999 and abs(d - dot * cp[b, 3]) < tau_h:
             return True
     lam = sa / (sa - sb)
     for c in range(3):
@@ -146,14 +146,15 @@ def _cut_between(a, b, rec, cell, tau_h):
 
 
 @njit(cache=True)
-def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau, kappa, dense, pmin,
+def _sweep(starts, cell, rec, cp, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau, kappa, dense, pmin,
            P, qmin, head, last, hkeys, mask, nxt, touched, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over voxels
     stored in this axis's order (index = position in the order). Lengths
-    are in cells. rec (n, 21) holds, per voxel, what a sweep touches
-    together: centroid 0-2, normal 3-5, cos weight 6 (forwards) or 7
-    (backwards), gathered 8-10, S 11, radiosity 12-14, the cut plane 16-19
-    and the voxel's side of it 20 (0: not cut)."""
+    are in cells. rec (n, 16) holds, per voxel, what a sweep touches
+    together (two cache lines): centroid 0-2, normal 3-5, cos weight 6
+    (forwards) or 7 (backwards), gathered 8-10, S 11, radiosity 12-14, the
+    voxel's side of the plane that cut its cell 15 (0: not cut); that plane
+    is cp (n, 4), read only for cut voxels."""
     ng = starts.shape[0] - 1
     cw = 6 if forward else 7
     if not forward:
@@ -213,9 +214,12 @@ def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, f
                     nx_ = nxt[x]
                     d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
                     if d >= -tau_h:
-                        if (m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h)) and \
-                                not _cut_between(y, x, rec, cell, tau_h) and not _cut_between(x, y, rec, cell, tau_h) \
-                                and not (d < 0.0 and _cut_by(x, y, rec, tau_h)):
+                        seen = m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h)
+                        if seen and (rec[x, 15] != 0.0 or rec[y, 15] != 0.0):  # a surface cuts x's or y's cell
+                            seen = not _cut_between(y, x, rec, cp, cell, tau_h) and \
+                                not _cut_between(x, y, rec, cp, cell, tau_h) and \
+                                not (d < 0.0 and _cut_by(x, y, rec, cp, tau_h))
+                        if seen:
                             w = rec[x, cw]
                             rec[x, 8] += rec[y, 12] * w
                             rec[x, 9] += rec[y, 13] * w
@@ -266,7 +270,7 @@ def _sweep(starts, cell, rec, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, f
 
 
 @njit(cache=True, parallel=True)
-def _gather_permuted(order, cell, frac, normal, cut, radiosity, cell_k, rec):
+def _gather_permuted(order, cell, frac, normal, cut, radiosity, cell_k, rec, cp):
     """Lays the voxel data out in axis order: cell (int32) and the record
     (centroid = cell + float32 fraction, normal, radiosity; sums zeroed)."""
     n = order.shape[0]
@@ -279,8 +283,9 @@ def _gather_permuted(order, cell, frac, normal, cut, radiosity, cell_k, rec):
             rec[i, 8 + c] = 0.0
             rec[i, 12 + c] = radiosity[v, c]
         rec[i, 11] = 0.0
-        for c in range(5):
-            rec[i, 16 + c] = cut[v, c]
+        for c in range(4):
+            cp[i, c] = cut[v, c]
+        rec[i, 15] = cut[v, 4]
 
 
 def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, cut, radiosity, vectors, axes,
@@ -307,13 +312,14 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, cut
         return gathered, quad
     scratch = _scratch(n, starts.shape[1] - 1, max_group, table_size, hashed)
     cell_k = np.empty((n, 3), np.int32)
-    rec = np.empty((n, 21))
+    rec = np.empty((n, 16))
+    cp = np.empty((n, 4))
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
         if len(fams) == 0:
             continue
-        _gather_permuted(orders[k], cell, frac, normal, cut, radiosity, cell_k, rec)
-        _families(fams, starts[k], cell_k, rec, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
+        _gather_permuted(orders[k], cell, frac, normal, cut, radiosity, cell_k, rec, cp)
+        _families(fams, starts[k], cell_k, rec, cp, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
                   table_size, *scratch)
         _scatter_add(orders[k], rec, gathered, quad)
     return gathered, quad
@@ -328,7 +334,7 @@ def _scratch(n, ng, max_group, table_size, hashed):
 
 
 @njit(cache=True, parallel=True)
-def _families(fams, st, cell_k, rec, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, size,
+def _families(fams, st, cell_k, rec, cp, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, size,
               heads, lasts, hkeys, nxts, toucheds, bufs, bkeys):
     k1, k2 = (k + 1) % 3, (k + 2) % 3
     for fi in range(fams.shape[0]):
@@ -338,7 +344,7 @@ def _families(fams, st, cell_k, rec, cell_lo, cell_hi, vectors, units, weights, 
         pmin, P, qmin, Q = _line_bounds(cell_lo, cell_hi, k, k1, k2, A, B, C, mu, mu2)
         dense = P * Q <= size
         for sweep in prange(2):
-            _sweep(st, cell_k, rec, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f],
+            _sweep(st, cell_k, rec, cp, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f],
                    sweep == 0, tau, kappa, dense, pmin, P, qmin, heads[sweep], lasts[sweep], hkeys[sweep], size - 1,
                    nxts[sweep], toucheds[sweep], bufs[sweep], bkeys[sweep])
 
