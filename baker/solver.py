@@ -23,7 +23,7 @@ from .config import SolverConfig
 from .directions import direction_set
 from .photons import shoot_photons
 from .propagate import LineSweeper
-from .stats import Stats, peak_rss_mb
+from .stats import Stats, peak_rss_mb, release_freed_memory
 from .voxels import Voxels, voxelize
 
 
@@ -93,9 +93,11 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
         surfaces = surfaces or surf_mod.pack(scene)
     with stats.stage("voxelize"):
         vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surfaces)
+        release_freed_memory()
     n = len(vox)
     with stats.stage("photons"):
         dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed)
+        release_freed_memory()
     area = vox.area[:, None]
     h1 = first_bounce_irradiance(vox, dep)
     lum = dep.sum(axis=1)
@@ -111,6 +113,7 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
     if p1 > 0 and config.max_bounces > 1:
         with stats.stage("propagation"):
             sweeper = LineSweeper(vox)
+            release_freed_memory()
             stop_mem = peak_rss_mb()
             cache = {}
             radii = config.radii()

@@ -25,6 +25,7 @@ from baker.config import solver_config
 from baker.directions import direction_set
 from baker.propagate import LineSweeper
 from baker.scene import load_scene
+from baker.stats import release_freed_memory
 from baker.voxels import voxelize
 
 
@@ -74,7 +75,9 @@ def main():
     t0 = time.perf_counter()
     v = voxelize(cornell, big_res)
     t_vox = time.perf_counter() - t0
+    release_freed_memory()  # as solve() does after voxelizing and after building the sweeper
     sw = LineSweeper(v)
+    release_freed_memory()
     for th in sorted({1, threads}):
         numba.set_num_threads(th)
         dt, transfers = time_gather(sw, len(v), 8)
