@@ -106,6 +106,15 @@ CUT_REACH = 3.0  # cells around a cut voxel's cell where its cutting surface is 
 
 
 @njit(cache=True, inline="always")
+def _unlink(head, s, nxt, prev, nx_):
+    """Removes from line s's waiting list the voxel after prev (head if none)."""
+    if prev == EMPTY:
+        head[s] = nx_
+    else:
+        nxt[prev] = nx_
+
+
+@njit(cache=True, inline="always")
 def _cut_by(x, y, rec, cp, tau_h):
     """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
     Then x, behind y's plane even within tau, sees y's back, not its face."""
@@ -224,10 +233,7 @@ def _sweep(starts, cell, rec, cp, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weigh
                             rec[x, 8] += rec[y, 12] * w
                             rec[x, 9] += rec[y, 13] * w
                             rec[x, 10] += rec[y, 14] * w
-                        if prev == EMPTY:
-                            head[s] = nx_
-                        else:
-                            nxt[prev] = nx_
+                        _unlink(head, s, nxt, prev, nx_)
                     else:
                         prev = x
                     x = nx_
@@ -248,10 +254,7 @@ def _sweep(starts, cell, rec, cp, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weigh
                             (cy2 - rec[x, 2]) * rec[x, 5]
                         blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
-                        if prev == EMPTY:
-                            head[s] = nx_
-                        else:
-                            nxt[prev] = nx_
+                        _unlink(head, s, nxt, prev, nx_)
                     else:
                         prev = x
                     x = nx_

@@ -155,26 +155,8 @@ def clip_pieces(corners, sides_tri, sides_sign, origin, inv_h, offsets, dims, pi
                     cell[k], cell[ia], cell[ja] = kk, i, j
                     for c in range(3):
                         px[c], py[c], pz[c] = g[c, 0], g[c, 1], g[c, 2]
-                    m = 3
-                    qx, qy, qz = px, py, pz
-                    for axis in range(3):
-                        if m == 0:
-                            break
-                        qx, qy, qz, m = _clip(qx, qy, qz, m, axis, float(cell[axis]), True)
-                        if m == 0:
-                            break
-                        qx, qy, qz, m = _clip(qx, qy, qz, m, axis, float(cell[axis] + 1), False)
-                    area = 0.0
-                    cx = cy = cz = 0.0
-                    for v in range(1, m - 1):
-                        ux, uy, uz = qx[v] - qx[0], qy[v] - qy[0], qz[v] - qz[0]
-                        wx, wy, wz = qx[v + 1] - qx[0], qy[v + 1] - qy[0], qz[v + 1] - qz[0]
-                        crx, cry, crz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-                        a = 0.5 * math.sqrt(crx * crx + cry * cry + crz * crz)
-                        area += a
-                        cx += a * (qx[0] + qx[v] + qx[v + 1]) / 3.0
-                        cy += a * (qy[0] + qy[v] + qy[v + 1]) / 3.0
-                        cz += a * (qz[0] + qz[v] + qz[v + 1]) / 3.0
+                    qx, qy, qz, m = _clip_to_cell(px, py, pz, cell)
+                    area, cx, cy, cz = _area_centroid(qx, qy, qz, m)
                     in_grid = True
                     for c in range(3):
                         if cell[c] < 0 or cell[c] >= dims[c]:
@@ -329,15 +311,8 @@ def side_signatures(order, key, facing, area, centroid, normal, tol):
 
 
 @njit(cache=True)
-def _piece_polygon(corners, tri, sign_dummy, origin, inv_h, cell):
-    """The polygon of scene triangle `tri` clipped to `cell` (grid units)."""
-    px = np.empty(MAX_POLY)
-    py = np.empty(MAX_POLY)
-    pz = np.empty(MAX_POLY)
-    for c in range(3):
-        px[c] = (corners[tri, c, 0] - origin[0]) * inv_h
-        py[c] = (corners[tri, c, 1] - origin[1]) * inv_h
-        pz[c] = (corners[tri, c, 2] - origin[2]) * inv_h
+def _clip_to_cell(px, py, pz, cell):
+    """Triangle (px, py, pz)[:3] (grid units) clipped to the unit cube of `cell`."""
     m = 3
     qx, qy, qz = px, py, pz
     for axis in range(3):
@@ -348,6 +323,19 @@ def _piece_polygon(corners, tri, sign_dummy, origin, inv_h, cell):
             break
         qx, qy, qz, m = _clip(qx, qy, qz, m, axis, float(cell[axis] + 1), False)
     return qx, qy, qz, m
+
+
+@njit(cache=True)
+def _piece_polygon(corners, tri, origin, inv_h, cell):
+    """The polygon of scene triangle `tri` clipped to `cell` (grid units)."""
+    px = np.empty(MAX_POLY)
+    py = np.empty(MAX_POLY)
+    pz = np.empty(MAX_POLY)
+    for c in range(3):
+        px[c] = (corners[tri, c, 0] - origin[0]) * inv_h
+        py[c] = (corners[tri, c, 1] - origin[1]) * inv_h
+        pz[c] = (corners[tri, c, 2] - origin[2]) * inv_h
+    return _clip_to_cell(px, py, pz, cell)
 
 
 @njit(cache=True)
@@ -377,6 +365,7 @@ def _clip_plane(px, py, pz, n, nx, ny, nz, d, keep_front):
 
 @njit(cache=True)
 def _area_centroid(qx, qy, qz, m):
+    """Area and area-weighted centroid sum of a planar polygon (fan triangles)."""
     area = 0.0
     cx = cy = cz = 0.0
     for v in range(1, m - 1):
@@ -409,7 +398,7 @@ def find_straddlers(by_cell, key, facing, piece_tri, piece_cell, area, centroid,
             for i in range(a, b):
                 p = by_cell[i]
                 best, best_part = -1, min_part
-                qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], 0, origin, inv_h, piece_cell[p])
+                qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], origin, inv_h, piece_cell[p])
                 for j in range(a, b):
                     q = by_cell[j]
                     if facing[q] == facing[p] or piece_tri[q] == piece_tri[p]:
@@ -445,7 +434,7 @@ def split_pieces(cut, piece_tri, piece_cell, area, centroid, normal, corners, or
         q = cut[p]
         if q < 0:
             continue
-        qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], 0, origin, inv_h, piece_cell[p])
+        qx, qy, qz, m = _piece_polygon(corners, piece_tri[p], origin, inv_h, piece_cell[p])
         nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
         d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
         for part in range(2):
