@@ -5,5 +5,7 @@ renderers in `baker.pathtrace` / `baker.voxelview`.
 """
 __version__ = "0.1.0"
 
-from .errors import VoxgiError  # noqa: F401
-from .scene import load_scene  # noqa: F401
+from .errors import VoxgiError
+from .scene import load_scene
+
+__all__ = ["VoxgiError", "load_scene", "__version__"]

@@ -98,9 +98,3 @@ def quadrature_cosine(normal, dirs: DirectionSet) -> np.ndarray:
     n = np.asarray(normal, np.float64).reshape(-1, 3)
     cos = n @ dirs.unit.T
     return (np.clip(cos, 0, None) * dirs.solid_angle + np.clip(-cos, 0, None) * dirs.solid_angle).sum(axis=1) / np.pi
-
-
-def radius_for_count(target: float, r_min: int = 1) -> int:
-    """Smallest r with |D_r| >= target (|D_r| = 24 r^2 + 2)."""
-    r = max(r_min, int(np.ceil(np.sqrt(max(target - 2, 0) / 24))))
-    return r

@@ -12,7 +12,6 @@ outgoing radiosity is B = E + rho H.
 from __future__ import annotations
 
 import sys
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +22,7 @@ from .config import SolverConfig
 from .directions import direction_set
 from .photons import shoot_photons
 from .propagate import LineSweeper
-from .stats import Stats, peak_rss_mb, release_freed_memory
+from .stats import Stats, release_freed_memory
 from .voxels import Voxels, voxelize
 
 
@@ -114,7 +113,6 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
         with stats.stage("propagation"):
             sweeper = LineSweeper(vox)
             release_freed_memory()
-            stop_mem = peak_rss_mb()
             cache = {}
             radii = config.radii()
             bar = None
@@ -141,7 +139,6 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
                     break
             if bar is not None:
                 bar.close()
-            del stop_mem
     elif p1 > 0:
         stop = "bounce cap (1)"
     radiosity = vox.emission + vox.albedo * total

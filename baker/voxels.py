@@ -23,7 +23,6 @@ MIN_SEPARATION = 0.01    # in cells: pieces this far on both sides of a surface'
 MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
-FACING_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
 @dataclass(frozen=True)

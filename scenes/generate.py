@@ -54,7 +54,6 @@ def box(lo, hi, inward=False, subdiv=1, skip=()):
     """Axis-aligned box; faces named by axis and sign ('-x', '+y', ...) in
     `skip` are left out."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    c = (lo + hi) / 2
     parts = []
     for axis in range(3):
         for sign in (-1, 1):

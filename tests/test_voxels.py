@@ -7,7 +7,7 @@ from baker.propagate import LineSweeper
 from baker.directions import direction_set
 from baker.scene import load_scene
 from baker.voxels import estimate, voxelize
-from scenes.generate import GltfBuilder, box, cornell_box, furnace_box, quad
+from scenes.generate import GltfBuilder, box, furnace_box, quad
 
 
 def mesh_area(scene):

@@ -26,10 +26,3 @@ def rand01(seed, index, dim):
     h = mix64(np.uint64(seed) * _C1 + np.uint64(index))
     h = mix64(h ^ (np.uint64(dim) * _C2 + _C1))
     return float(h >> np.uint64(11)) * _INV53
-
-
-@njit(cache=True, inline="always")
-def rand_index(seed, index, dim, n):
-    """Uniform integer in [0, n)."""
-    k = int(rand01(seed, index, dim) * n)
-    return k if k < n else n - 1

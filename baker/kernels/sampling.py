@@ -1,7 +1,6 @@
 """Sampling helpers: orthonormal frames, cosine hemisphere, triangles, CDFs."""
 import math
 
-import numpy as np
 from numba import njit
 
 
@@ -45,8 +44,3 @@ def sample_cdf(cdf, u):
         else:
             hi = mid
     return lo
-
-
-def build_cdf(weights) -> np.ndarray:
-    """Inclusive float64 CDF of non-negative weights."""
-    return np.cumsum(np.asarray(weights, np.float64))

@@ -175,17 +175,6 @@ def clip_pieces(corners, sides_tri, sides_sign, origin, inv_h, offsets, dims, pi
 
 
 @njit(cache=True)
-def facing_of(nx, ny, nz):
-    """0: +x, 1: -x, 2: +y, 3: -y, 4: +z, 5: -z (dominant axis and sign)."""
-    ax, ay, az = abs(nx), abs(ny), abs(nz)
-    if ax >= ay and ax >= az:
-        return 0 if nx > 0 else 1
-    if ay >= az:
-        return 2 if ny > 0 else 3
-    return 4 if nz > 0 else 5
-
-
-@njit(cache=True)
 def merge_sheets(order, key, facing, sig, along, area, centroid, normal, sheet_gap):
     """Walks pieces sorted by (cell key, facing, side signature, position
     along the facing axis) and assigns each to a voxel: a new voxel starts
