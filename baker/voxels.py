@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import BudgetError
-from .kernels.voxelize import (clip_pieces, count_candidates, find_straddlers, merge_sheets, separating_planes,
-                               side_signatures, split_pieces, textured_albedo)
+from .kernels.voxelize import (cell_runs, clip_pieces, count_candidates, find_straddlers, merge_sheets,
+                               separating_planes, side_signatures, split_pieces, textured_albedo)
 
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
 MIN_SPLIT_PART = 1e-6    # in cells^2: a piece is cut by another surface's plane when both parts are larger
@@ -153,7 +153,8 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     key, facing, axis = keys_and_facings()
     # straddling pieces (a floor running under a wall): cut by the other surface's plane
     p_tri = sides_tri[p_side]
-    cut = find_straddlers(np.argsort(key, kind="stable"), key, facing, p_tri, p_cell, p_area, p_cen, p_nrm,
+    by_cell = np.argsort(key, kind="stable")
+    cut = find_straddlers(by_cell, cell_runs(by_cell, key), key, facing, p_tri, p_cell, p_area, p_cen, p_nrm,
                           corners, origin, inv_h, MIN_SPLIT_PART)
     n0 = len(p_area)
     split = np.nonzero(cut >= 0)[0]
@@ -175,8 +176,9 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     # takes its side of it; voxels then know the surface stands there (kernels/propagate.py, _cut_between)
     cell_plane = np.zeros((len(p_area), 4))
     has = np.zeros(len(p_area), np.bool_)
-    separating_planes(np.argsort(key, kind="stable"), key, sides_tri[p_side], p_area, p_cen, p_nrm, MIN_SEPARATION,
-                      cell_plane, has)
+    by_cell = np.argsort(key, kind="stable")
+    runs = cell_runs(by_cell, key)
+    separating_planes(by_cell, runs, sides_tri[p_side], p_area, p_cen, p_nrm, MIN_SEPARATION, cell_plane, has)
     if (p_sign != 0).any():
         cut_keys, first = np.unique(key[p_sign != 0], return_index=True)
         planes = p_plane[p_sign != 0][first]
@@ -193,8 +195,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     p_plane[idx] = pl
     p_sign[idx] = np.where(side >= 0, 1, -1)
     along = p_cen[np.arange(len(axis)), axis] / p_area
-    by_cell = np.argsort(key, kind="stable")
-    sig = side_signatures(by_cell, key, facing, p_area, p_cen, p_nrm, SHEET_GAP)
+    sig = side_signatures(by_cell, runs, key, facing, p_area, p_cen, p_nrm, SHEET_GAP)
     # the two parts of a cut piece never merge: fold the part into the signature
     group = np.unique(np.stack([sig, p_sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
     order = np.lexsort((along, group, facing, key))

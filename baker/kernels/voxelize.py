@@ -265,8 +265,14 @@ def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
     return out
 
 
+def cell_runs(order, key):
+    """Boundaries (m + 1,) of the runs of equal cell key in pieces sorted by key (order)."""
+    k = key[order]
+    return np.concatenate([[0], np.flatnonzero(k[1:] != k[:-1]) + 1, [len(k)]]).astype(np.int64)
+
+
 @njit(cache=True)
-def side_signatures(order, key, facing, area, centroid, normal, tol):
+def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
     """For pieces sorted by cell key (order), a signature per piece: bit i
     set when the piece lies in front of (beyond tol, grid units) the plane
     of the i-th piece of another facing in the same cell. Pieces of one
@@ -276,11 +282,8 @@ def side_signatures(order, key, facing, area, centroid, normal, tol):
     pieces keep signature 0 for the excess planes."""
     n = order.shape[0]
     sig = np.zeros(n, np.int64)
-    a = 0
-    while a < n:
-        b = a + 1
-        while b < n and key[order[b]] == key[order[a]]:
-            b += 1
+    for r in range(runs.shape[0] - 1):
+        a, b = runs[r], runs[r + 1]
         if b - a > 1:
             for i in range(a, b):
                 p = order[i]
@@ -295,7 +298,6 @@ def side_signatures(order, key, facing, area, centroid, normal, tol):
                     if d > tol:
                         s |= np.int64(1) << np.int64(j - a)
                 sig[p] = s
-        a = b
     return sig
 
 
@@ -370,7 +372,7 @@ def _area_centroid(qx, qy, qz, m):
 
 
 @njit(cache=True)
-def find_straddlers(by_cell, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
+def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
                     min_part):
     """For each piece: the piece of another facing and another triangle in
     the same cell whose plane cuts it into two parts of at least min_part
@@ -378,11 +380,8 @@ def find_straddlers(by_cell, key, facing, piece_tri, piece_cell, area, centroid,
     the one that leaves the larger smaller part."""
     n = by_cell.shape[0]
     cut = np.full(n, -1, np.int64)
-    a = 0
-    while a < n:
-        b = a + 1
-        while b < n and key[by_cell[b]] == key[by_cell[a]]:
-            b += 1
+    for r in range(runs.shape[0] - 1):
+        a, b = runs[r], runs[r + 1]
         if b - a > 1:
             for i in range(a, b):
                 p = by_cell[i]
@@ -407,7 +406,6 @@ def find_straddlers(by_cell, key, facing, piece_tri, piece_cell, area, centroid,
                     if part > best_part:
                         best, best_part = q, part
                 cut[p] = best
-        a = b
     return cut
 
 
@@ -437,18 +435,14 @@ def split_pieces(cut, piece_tri, piece_cell, area, centroid, normal, corners, or
 
 
 @njit(cache=True)
-def separating_planes(by_cell, key, piece_tri, area, centroid, normal, tol, planes, has):
+def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, planes, has):
     """Cells where the plane of a piece q has two pieces of other triangles,
     not parallel to it, clearly on both sides (beyond tol cells): a surface
     standing between them inside the cell (a wall between two floors).
     Writes q's plane (normal, offset; grid units) into planes[i] and True
     into has[i] for every piece i of such a cell."""
-    n = by_cell.shape[0]
-    a = 0
-    while a < n:
-        b = a + 1
-        while b < n and key[by_cell[b]] == key[by_cell[a]]:
-            b += 1
+    for r in range(runs.shape[0] - 1):
+        a, b = runs[r], runs[r + 1]
         if b - a > 2:
             for j in range(a, b):
                 q = by_cell[j]
@@ -472,4 +466,3 @@ def separating_planes(by_cell, key, piece_tri, area, centroid, normal, tol, plan
                         planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3] = nx, ny, nz, d
                         has[p] = True
                     break
-        a = b
