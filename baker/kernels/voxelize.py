@@ -95,34 +95,12 @@ def count_candidates(corners, sides_tri, sides_sign, origin, inv_h):
 @njit(cache=True)
 def _clip(px, py, pz, n, axis, value, keep_above):
     """Sutherland-Hodgman: keep the part of polygon (px, py, pz)[:n] with
-    coordinate `axis` >= value (keep_above) or <= value."""
-    ox = np.empty(MAX_POLY)
-    oy = np.empty(MAX_POLY)
-    oz = np.empty(MAX_POLY)
-    m = 0
-    for i in range(n):
-        j = (i + 1) % n
-        ci = (px[i], py[i], pz[i])[axis] - value
-        cj = (px[j], py[j], pz[j])[axis] - value
-        if not keep_above:
-            ci, cj = -ci, -cj
-        if ci >= 0.0:
-            ox[m], oy[m], oz[m] = px[i], py[i], pz[i]
-            m += 1
-        if (ci >= 0.0) != (cj >= 0.0):
-            t = ci / (ci - cj)
-            ox[m] = px[i] + t * (px[j] - px[i])
-            oy[m] = py[i] + t * (py[j] - py[i])
-            oz[m] = pz[i] + t * (pz[j] - pz[i])
-            # land exactly on the plane (no drift across it)
-            if axis == 0:
-                ox[m] = value
-            elif axis == 1:
-                oy[m] = value
-            else:
-                oz[m] = value
-            m += 1
-    return ox, oy, oz, m
+    coordinate `axis` >= value (keep_above) or <= value; new vertices land
+    exactly on the plane (no drift across it)."""
+    nx = 1.0 if axis == 0 else 0.0
+    ny = 1.0 if axis == 1 else 0.0
+    nz = 1.0 if axis == 2 else 0.0
+    return _clip_plane(px, py, pz, n, nx, ny, nz, value, keep_above, axis)
 
 
 @njit(cache=True, parallel=True)
@@ -330,8 +308,10 @@ def _piece_polygon(corners, tri, origin, inv_h, cell):
 
 
 @njit(cache=True)
-def _clip_plane(px, py, pz, n, nx, ny, nz, d, keep_front):
-    """Keep the part of polygon with (p . n - d) >= 0 (keep_front) or <= 0."""
+def _clip_plane(px, py, pz, n, nx, ny, nz, d, keep_front, snap_axis=-1):
+    """Sutherland-Hodgman: keep the part of polygon (px, py, pz)[:n] with
+    (p . n - d) >= 0 (keep_front) or <= 0. With snap_axis (an axis-aligned
+    plane), new vertices get that coordinate exactly d."""
     ox = np.empty(MAX_POLY)
     oy = np.empty(MAX_POLY)
     oz = np.empty(MAX_POLY)
@@ -350,6 +330,12 @@ def _clip_plane(px, py, pz, n, nx, ny, nz, d, keep_front):
             ox[m] = px[i] + t * (px[j] - px[i])
             oy[m] = py[i] + t * (py[j] - py[i])
             oz[m] = pz[i] + t * (pz[j] - pz[i])
+            if snap_axis == 0:
+                ox[m] = d
+            elif snap_axis == 1:
+                oy[m] = d
+            elif snap_axis == 2:
+                oz[m] = d
             m += 1
     return ox, oy, oz, m
 
