@@ -24,16 +24,25 @@ class LineSweeper:
         n = len(cell)
         self.n = n
         self.cell = cell
-        # lengths in cells: centroids in grid coordinates, as the cell plus its
-        # float32 fraction (exact to 1e-7 cell at any grid size); float32 normals
-        self.frac = ((voxels.centroid - voxels.origin) / voxels.cell_size - cell).astype(np.float32)
-        self.normal = np.ascontiguousarray(voxels.normal, np.float32)
-        # the plane of a surface that cut a voxel's pieces (grid units) and the voxel's side of it
-        plane = voxels.cut_plane.astype(np.float64)
-        plane[:, 3] += (plane[:, :3] * cell).sum(axis=1)  # back to absolute grid coordinates
-        self.cut = np.concatenate([plane, voxels.cut_sign[:, None].astype(np.float64)], axis=1)
+        # what the sweep reads per voxel, lengths in cells (pos: see kernels/propagate.py):
+        # the centroid in grid coordinates and the normal, float32 (1e-7 of the grid's
+        # extent: tau is 0.1 cell), the side of a cutting plane and that plane's row
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
+        pos = np.zeros((n, 8), np.float32)
+        pos[:, :3] = (voxels.centroid - voxels.origin) / voxels.cell_size
+        pos[:, 3:6] = voxels.normal
+        cut = np.nonzero(voxels.cut_sign != 0)[0]
+        if len(cut) >= 2 ** 24:
+            raise ValueError("too many cut voxels for the propagation's float32 index")
+        pos[cut, 6] = voxels.cut_sign[cut]
+        pos[cut, 7] = np.arange(len(cut))
+        # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells
+        plane = voxels.cut_plane[cut].astype(np.float64)
+        plane[:, 3] += (plane[:, :3] * cell[cut]).sum(axis=1)
+        self.cutp = np.ascontiguousarray(np.concatenate([plane, cell[cut].astype(np.float64)], axis=1))
+        self._cut_rows = cut
+        self.pos = pos
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
         new = np.ones(n, bool)
         new[1:] = np.any(cell[1:] != cell[:-1], axis=1)
@@ -58,9 +67,24 @@ class LineSweeper:
         self.table_size = 1 << max(10, int(np.ceil(np.log2(max(2 * ng, 2)))))
 
     @property
+    def normal(self) -> np.ndarray:
+        """(n, 3) float32 normals, as the kernel sees them."""
+        return self.pos[:, 3:6]
+
+    @property
+    def cut(self) -> np.ndarray:
+        """(n, 5) float64: per voxel the plane (normal, offset n.g in grid
+        coordinates) of a surface that cut its pieces and its side of it (0:
+        not cut), as the kernel sees them."""
+        out = np.zeros((self.n, 5))
+        out[self._cut_rows, :4] = self.cutp[:, :4]
+        out[:, 4] = self.pos[:, 6]
+        return out
+
+    @property
     def centroid(self) -> np.ndarray:
         """(n, 3) float64 centroids in grid coordinates, as the kernel sees them."""
-        return self.cell + self.frac.astype(np.float64)
+        return self.pos[:, :3].astype(np.float64)
 
     def line_table(self, dirs: DirectionSet):
         """(size, hashed): a dense line table as large as the largest family's
@@ -76,17 +100,20 @@ class LineSweeper:
         p = (c * ext[k] + a * ext[(k + 2) % 3]) // a + 2
         q = (b * ext[k] + a * ext[(k + 1) % 3]) // a + 2
         need = int((p * q).max())
+        if need >= 2 ** 31 and self.table_size >= 2 ** 31:
+            raise ValueError("the voxel grid is too large for the propagation's line table")
         if need <= self.table_size:
             return need, False
         return self.table_size, True
 
     @property
     def nbytes(self) -> int:
-        """Working memory of a bounce beyond the voxel arrays: the orders and
-        cell boundaries, the line tables, the per-axis copy and sums, scratch."""
-        per_voxel = (12 + 24 + 24 + 12) + (24 + 8) + (24 + 8) + 2 * 4  # axis copy, axis sums, out, lists
-        return self.orders.nbytes + self.starts.nbytes + self.frac.nbytes + self.normal.nbytes + \
-            2 * (8 * self.table_size + 4 * self.starts.shape[1]) + self.n * per_voxel
+        """Working memory of a bounce beyond the voxel arrays (the line
+        tables at their largest; waiting records not counted: only the live
+        ones are touched, a few per cent of the voxels)."""
+        per_voxel = 32 + 24 + 32 + 24 + 8  # axis copy, its radiosity, its sums, the output
+        return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
+            12 * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
@@ -101,8 +128,8 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.frac,
-                                  self.normal, self.cut, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
+        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
+                                  self.cutp, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
                                   self.max_group, *self.line_table(dirs))
 

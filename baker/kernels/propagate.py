@@ -25,50 +25,77 @@ plane where q stands (a wall standing mid-cell on a floor).
 Gathering writes only the gathering voxel, and a voxel gathers along s or
 -s, never both: the two sweeps of a family run in parallel, and families
 run in a fixed order, so the result is identical for any thread count.
+
+Memory layout (what a sweep touches per voxel, measured to matter at a
+million voxels, where the waiting voxels' data has left the cache by the
+time their line meets a surface):
+- pos (n, 8) float32 per voxel in the axis's order: centroid (grid
+  coordinates), normal, the side of a cutting plane (0: not cut) and the
+  index of that plane in cutp (only read for cut voxels);
+- the line table (size, 4) int32 per line: stamp (the family that last
+  used it: no clearing between families), head of the waiting list, last
+  voxel added, hashed key;
+- waiting records (n, 8) int32 from a free list, so the live ones stay
+  few and close together: centroid and normal (float32 bits), the voxel
+  (-v-1 when cut), the next record;
+- acc (n, 4) float64 per voxel: gathered (3) and the quadrature sum S.
+The sweep prefetches, a few cells ahead, the table entry, then the head
+record (prefetching the head voxel's sums as well was measured to cost more
+than it saves: it needs a load of the record). The rare paths (cells with
+several voxels, cut cells, convex edges) are functions of their own:
+inlined, they slow the common path by a third (register pressure).
 """
 import numpy as np
 from numba import njit, prange
 
+from .prefetch import prefetch
+
 EMPTY = -1
-UNTOUCHED = -2
-
-
-@njit(cache=True)
-def _line_bounds(lo, hi, k, k1, k2, A, B, C, mu, mu2):
-    """Range of line ids over the voxels' bounding box (lo, hi cells): (pmin, P, qmin, Q)."""
-    x0, x1, y0, y1, z0, z1 = lo[k], hi[k], lo[k1], hi[k1], lo[k2], hi[k2]
-    pmin = (min(C * x0, C * x1) - A * z1 - mu) // A
-    pmax = (max(C * x0, C * x1) - A * z0 - mu) // A
-    qmin = (min(B * x0, B * x1) - A * y1 - mu2) // A
-    qmax = (max(B * x0, B * x1) - A * y0 - mu2) // A
-    return pmin, pmax - pmin + 1, qmin, qmax - qmin + 1
+CUT_REACH = 3.0   # cells around a cut voxel's cell where its cutting surface is taken to stand
+AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
+AHEAD_HEAD = 16   # ... its first waiting record
+RING = 64         # > AHEAD_TABLE, a power of two
 
 
 @njit(cache=True, inline="always")
-def _slot(p, q, dense, pmin, P, qmin, hkeys, mask):
-    """Table slot of line (p, q): dense index (p fastest: the next cells of
-    a column meet adjacent entries), or open addressing when the dense table
-    would be far larger than the voxel set (sparse scenes). Measured: the
-    table costs ~4 ns per voxel and family at any size; the waiting lists'
-    revisits of voxels met long before dominate at large N (bench notes)."""
-    idx = (q - qmin) * P + (p - pmin)
-    if dense:
-        return idx
+def _hash(idx, mask):
     h = np.uint64(idx) * np.uint64(0x9E3779B97F4A7C15)
     h ^= h >> np.uint64(32)
-    s = np.int64(h & np.uint64(mask))
+    return np.int64(h & np.uint64(mask))
+
+
+@njit(cache=True, inline="always")
+def _claim(idx, dense, tab, mask, stamp):
+    """Slot of line idx in the table, set up empty if this family has not
+    used it yet (dense: the id is the slot; else open addressing)."""
+    s = idx if dense else _hash(idx, mask)
     while True:
-        kk = hkeys[s]
-        if kk == idx:
+        if tab[s, 0] != stamp:
+            tab[s, 0] = stamp
+            tab[s, 1] = EMPTY
+            tab[s, 2] = EMPTY
+            tab[s, 3] = idx
             return s
-        if kk == EMPTY:
-            hkeys[s] = idx
+        if dense or tab[s, 3] == idx:
             return s
         s = (s + 1) & mask
 
 
 @njit(cache=True, inline="always")
-def _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
+def _find(idx, dense, tab, mask, stamp):
+    """Slot of line idx if this family uses it, else -1 (read only)."""
+    if dense:
+        return idx if tab[idx, 0] == stamp else EMPTY
+    s = _hash(idx, mask)
+    while tab[s, 0] == stamp:
+        if tab[s, 3] == idx:
+            return s
+        s = (s + 1) & mask
+    return EMPTY
+
+
+@njit(cache=True)
+def _separated(x, y, buf, m, pos, tau_h, lo0, lo1, lo2):
     """Is y hidden from x by another voxel q of y's cell? True when q's plane
     lies between them (beyond tau h on each side), the segment from x's
     centroid to y's crosses that plane within half a cell of y's cell (the
@@ -82,229 +109,309 @@ def _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h):
             continue
         sx = sy = 0.0
         for c in range(3):
-            sx += (rec[x, c] - rec[q, c]) * rec[q, 3 + c]
-            sy += (rec[y, c] - rec[q, c]) * rec[q, 3 + c]
+            nq = float(pos[q, 3 + c])
+            sx += (float(pos[x, c]) - float(pos[q, c])) * nq
+            sy += (float(pos[y, c]) - float(pos[q, c])) * nq
         if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
             lam = sx / (sx - sy)
-            px = rec[x, 0] + (rec[y, 0] - rec[x, 0]) * lam
-            py = rec[x, 1] + (rec[y, 1] - rec[x, 1]) * lam
-            pz = rec[x, 2] + (rec[y, 2] - rec[x, 2]) * lam
-            if lo0 - 0.5 * h <= px <= lo0 + h + 0.5 * h and lo1 - 0.5 * h <= py <= lo1 + h + 0.5 * h and \
-                    lo2 - 0.5 * h <= pz <= lo2 + h + 0.5 * h:
+            x0, x1, x2 = float(pos[x, 0]), float(pos[x, 1]), float(pos[x, 2])
+            y0, y1, y2 = float(pos[y, 0]), float(pos[y, 1]), float(pos[y, 2])
+            px = x0 + (y0 - x0) * lam
+            py = x1 + (y1 - x1) * lam
+            pz = x2 + (y2 - x2) * lam
+            if lo0 - 0.5 <= px <= lo0 + 1.5 and lo1 - 0.5 <= py <= lo1 + 1.5 and lo2 - 0.5 <= pz <= lo2 + 1.5:
                 # q's piece stands where the segment crosses: on the same side
                 # of y's plane as q (a wall rising from a floor), not behind it
                 # (the side of a box under its top: a convex edge)
-                pside = (px - rec[y, 0]) * rec[y, 3] + (py - rec[y, 1]) * rec[y, 4] + (pz - rec[y, 2]) * rec[y, 5]
-                qside = (rec[q, 0] - rec[y, 0]) * rec[y, 3] + (rec[q, 1] - rec[y, 1]) * rec[y, 4] + \
-                    (rec[q, 2] - rec[y, 2]) * rec[y, 5]
+                n0, n1, n2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
+                pside = (px - y0) * n0 + (py - y1) * n1 + (pz - y2) * n2
+                qside = (float(pos[q, 0]) - y0) * n0 + (float(pos[q, 1]) - y1) * n1 + (float(pos[q, 2]) - y2) * n2
                 if pside * qside > 0.0:
                     return True
     return False
 
 
-CUT_REACH = 3.0  # cells around a cut voxel's cell where its cutting surface is taken to stand
-
-
-@njit(cache=True, inline="always")
-def _unlink(head, s, nxt, prev, nx_):
-    """Removes from line s's waiting list the voxel after prev (head if none)."""
-    if prev == EMPTY:
-        head[s] = nx_
-    else:
-        nxt[prev] = nx_
-
-
-@njit(cache=True, inline="always")
-def _cut_by(x, y, rec, cp, tau_h):
+@njit(cache=True)
+def _cut_by(x, y, pos, cutp, tau_h):
     """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
     Then x, behind y's plane even within tau, sees y's back, not its face."""
-    if rec[x, 15] == 0.0:
-        return False
-    dot = cp[x, 0] * rec[y, 3] + cp[x, 1] * rec[y, 4] + cp[x, 2] * rec[y, 5]
+    j = np.int64(pos[x, 7])
+    n0, n1, n2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
+    dot = cutp[j, 0] * n0 + cutp[j, 1] * n1 + cutp[j, 2] * n2
     if abs(dot) <= 0.999:
         return False
-    dy = rec[y, 0] * rec[y, 3] + rec[y, 1] * rec[y, 4] + rec[y, 2] * rec[y, 5]
-    return abs(cp[x, 3] - dot * dy) < tau_h
+    dy = float(pos[y, 0]) * n0 + float(pos[y, 1]) * n1 + float(pos[y, 2]) * n2
+    return abs(cutp[j, 3] - dot * dy) < tau_h
 
 
-@njit(cache=True, inline="always")
-def _cut_between(a, b, rec, cp, cell, tau_h):
+@njit(cache=True)
+def _cut_between(a, b, pos, cutp, tau_h):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
     on the other side of that plane and the segment a-b crosses it within
     CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
     surface runs past both ends), that surface stands between them."""
-    sign = rec[a, 15]
+    sign = float(pos[a, 6])
     if sign == 0.0:
         return False
-    nx, ny, nz, d = cp[a, 0], cp[a, 1], cp[a, 2], cp[a, 3]
-    sa = rec[a, 0] * nx + rec[a, 1] * ny + rec[a, 2] * nz - d
-    sb = rec[b, 0] * nx + rec[b, 1] * ny + rec[b, 2] * nz - d
+    j = np.int64(pos[a, 7])
+    nx, ny, nz, d = cutp[j, 0], cutp[j, 1], cutp[j, 2], cutp[j, 3]
+    a0, a1, a2 = float(pos[a, 0]), float(pos[a, 1]), float(pos[a, 2])
+    b0, b1, b2 = float(pos[b, 0]), float(pos[b, 1]), float(pos[b, 2])
+    sa = a0 * nx + a1 * ny + a2 * nz - d
+    sb = b0 * nx + b1 * ny + b2 * nz - d
     if sb * sign >= -tau_h or sa == sb:
         return False
-    if rec[b, 15] != 0.0:
-        dot = nx * cp[b, 0] + ny * cp[b, 1] + nz * cp[b, 2]
-        if abs(dot) > 0.999 and abs(d - dot * cp[b, 3]) < tau_h:
+    if pos[b, 6] != 0.0:
+        jb = np.int64(pos[b, 7])
+        dot = nx * cutp[jb, 0] + ny * cutp[jb, 1] + nz * cutp[jb, 2]
+        if abs(dot) > 0.999 and abs(d - dot * cutp[jb, 3]) < tau_h:
             return True
     lam = sa / (sa - sb)
-    for c in range(3):
-        p = rec[a, c] + (rec[b, c] - rec[a, c]) * lam
-        if p < cell[a, c] - CUT_REACH or p > cell[a, c] + 1.0 + CUT_REACH:
-            return False
-    return True
+    p0 = a0 + (b0 - a0) * lam
+    p1 = a1 + (b1 - a1) * lam
+    p2 = a2 + (b2 - a2) * lam
+    return cutp[j, 4] - CUT_REACH <= p0 <= cutp[j, 4] + 1.0 + CUT_REACH and \
+        cutp[j, 5] - CUT_REACH <= p1 <= cutp[j, 5] + 1.0 + CUT_REACH and \
+        cutp[j, 6] - CUT_REACH <= p2 <= cutp[j, 6] + 1.0 + CUT_REACH
 
 
 @njit(cache=True)
-def _sweep(starts, cell, rec, cp, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau, kappa, dense, pmin,
-           P, qmin, head, last, hkeys, mask, nxt, touched, buf, bkey):
-    """One sweep of one direction (forwards: +s, backwards: -s) over voxels
-    stored in this axis's order (index = position in the order). Lengths
-    are in cells. rec (n, 16) holds, per voxel, what a sweep touches
-    together (two cache lines): centroid 0-2, normal 3-5, cos weight 6
-    (forwards) or 7 (backwards), gathered 8-10, S 11, radiosity 12-14, the
-    voxel's side of the plane that cut its cell 15 (0: not cut); that plane
-    is cp (n, 4), read only for cut voxels."""
+def _order_cell(a, m, pos, ux, uy, uz, buf, bkey):
+    """The m voxels of a cell from a, in order along the sweep (ties: +1
+    before -1), into buf as v (n.s > 0) or -v-1."""
+    for i in range(m):
+        v = a + i
+        t = float(pos[v, 0]) * ux + float(pos[v, 1]) * uy + float(pos[v, 2]) * uz
+        o = float(pos[v, 3]) * ux + float(pos[v, 4]) * uy + float(pos[v, 5]) * uz
+        j = i
+        while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
+            bkey[j] = bkey[j - 1]
+            buf[j] = buf[j - 1]
+            j -= 1
+        bkey[j] = t
+        buf[j] = v if o > 0 else -v - 1  # the sign carries the orientation
+
+
+@njit(cache=True)
+def _hidden(x, y, xcut, ycut, d, g, m, buf, gcell, pos, cutp, tau_h):
+    """Is y, facing x's waiting ray within tau, hidden from x by another
+    surface: one crossing y's cell, or one that cut x's or y's pieces?"""
+    if m > 1 and _separated(x, y, buf, m, pos, tau_h, float(gcell[g, 0]), float(gcell[g, 1]), float(gcell[g, 2])):
+        return True
+    if xcut or ycut:
+        return _cut_between(y, x, pos, cutp, tau_h) or _cut_between(x, y, pos, cutp, tau_h) or \
+            (d < 0.0 and xcut and _cut_by(x, y, pos, cutp, tau_h))
+    return False
+
+
+@njit(cache=True)
+def _convex_edge(z, y, pos, kappa_h):
+    """Do z (the voxel last added to the line) and y, which turns its back,
+    form a convex edge: each just behind the other's plane, within kappa?"""
+    z0, z1, z2 = float(pos[z, 0]), float(pos[z, 1]), float(pos[z, 2])
+    y0, y1, y2 = float(pos[y, 0]), float(pos[y, 1]), float(pos[y, 2])
+    dz = (z0 - y0) * float(pos[y, 3]) + (z1 - y1) * float(pos[y, 4]) + (z2 - y2) * float(pos[y, 5])
+    ez = (y0 - z0) * float(pos[z, 3]) + (y1 - z1) * float(pos[z, 4]) + (y2 - z2) * float(pos[z, 5])
+    return dz < 0.0 and ez < 0.0 and dz >= -kappa_h
+
+
+@njit(cache=True, inline="always")
+def _unlink(j, prev, head, rec, free, nfree):
+    """Removes record j (after prev, or the head) from its list and frees
+    it: returns the new head."""
+    if prev == EMPTY:
+        head = rec[j, 7]
+    else:
+        rec[prev, 7] = rec[j, 7]
+    free[nfree] = j
+    return head
+
+
+@njit(cache=True)
+def _sweep(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau,
+           kappa, dense, pmin, P, qmin, tab, mask, stamp, rec, recf, free, buf, bkey):
+    """One sweep of one direction (forwards: +s, backwards: -s) over the
+    voxels in this axis's order (index = position in the order; lengths in
+    cells). gcell (ng, 3) int32 the cells, starts (ng + 1,) their voxels."""
     ng = starts.shape[0] - 1
-    cw = 6 if forward else 7
     if not forward:
         ux, uy, uz = -ux, -uy, -uz
-    n_touched = 0
     tau_h = tau
     kappa_h = kappa
-    h = 1.0
-    x_cur = np.int64(-(2 ** 62))
-    pc = qc = np.int64(0)
-    for gi in range(ng):
-        g = gi if forward else ng - 1 - gi
+    nfree = 0
+    ntop = 0
+    ring = np.empty(RING, np.int64)  # line ids of the next cells
+    xa = np.int64(-(2 ** 62))
+    pa = qa = np.int64(0)
+    for i0 in range(-AHEAD_TABLE, ng):
+        # the prefetch pipeline: line id and table entry, head record, sums
+        ia = i0 + AHEAD_TABLE
+        if ia < ng:
+            ga = ia if forward else ng - 1 - ia
+            X = np.int64(gcell[ga, k])
+            if X != xa:
+                # floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one division per slab of X
+                xa = X
+                pa = (C * X - mu) // A
+                qa = (B * X - mu2) // A
+            idx = (qa - np.int64(gcell[ga, k1]) - qmin) * P + (pa - np.int64(gcell[ga, k2]) - pmin)
+            ring[ia & (RING - 1)] = idx
+            prefetch(tab, idx if dense else _hash(idx, mask))
+        ib = i0 + AHEAD_HEAD
+        if 0 <= ib < ng:
+            sb = _find(ring[ib & (RING - 1)], dense, tab, mask, stamp)
+            if sb != EMPTY and tab[sb, 1] != EMPTY:
+                prefetch(rec, tab[sb, 1])
+        if i0 < 0:
+            continue
+        g = i0 if forward else ng - 1 - i0
+        s = _claim(ring[i0 & (RING - 1)], dense, tab, mask, stamp)
+        head = tab[s, 1]
+        last = tab[s, 2]
         a, b = starts[g], starts[g + 1]
-        X, Y, Z = np.int64(cell[a, k]), np.int64(cell[a, k1]), np.int64(cell[a, k2])
-        if X != x_cur:
-            # floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one division per slab of X
-            x_cur = X
-            pc = (C * X - mu) // A
-            qc = (B * X - mu2) // A
-        s = _slot(pc - Z, qc - Y, dense, pmin, P, qmin, hkeys, mask)
-        if head[s] == UNTOUCHED:
-            head[s] = EMPTY
-            last[s] = EMPTY
-            touched[n_touched] = s
-            n_touched += 1
-        lo0, lo1, lo2 = float(cell[a, 0]), float(cell[a, 1]), float(cell[a, 2])
         # the cell's voxels in order along the sweep; ties: +1 before -1
         m = b - a
-        if m == 1:
-            o = rec[a, 3] * ux + rec[a, 4] * uy + rec[a, 5] * uz
-            buf[0] = a if o > 0 else -a - 1
-        else:
-            for i in range(m):
-                v = a + i
-                t = rec[v, 0] * ux + rec[v, 1] * uy + rec[v, 2] * uz
-                o = rec[v, 3] * ux + rec[v, 4] * uy + rec[v, 5] * uz
-                j = i
-                while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
-                    bkey[j] = bkey[j - 1]
-                    buf[j] = buf[j - 1]
-                    j -= 1
-                bkey[j] = t
-                buf[j] = v if o > 0 else -v - 1  # the sign carries the orientation
+        if m > 1:
+            _order_cell(a, m, pos, ux, uy, uz, buf, bkey)
         for i in range(m):
-            e = buf[i]
-            y = e if e >= 0 else -e - 1
-            ny0, ny1, ny2 = rec[y, 3], rec[y, 4], rec[y, 5]
+            if m == 1:
+                y = a
+            else:
+                e = buf[i]
+                y = e if e >= 0 else -e - 1
+            ny0, ny1, ny2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
             o = ny0 * ux + ny1 * uy + ny2 * uz
             if o == 0.0:
                 continue  # parallel to the line: neither sends nor receives
-            cy0, cy1, cy2 = rec[y, 0], rec[y, 1], rec[y, 2]
+            cy0, cy1, cy2 = float(pos[y, 0]), float(pos[y, 1]), float(pos[y, 2])
+            ycut = pos[y, 6] != 0.0
             prev = EMPTY
-            x = head[s]
+            j = head
             if o < 0.0:
                 # y faces the rays: waiting voxels in front of (or near) its plane see it
-                while x != EMPTY:
-                    nx_ = nxt[x]
-                    d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
+                while j != EMPTY:
+                    nj = rec[j, 7]
+                    d = (float(recf[j, 0]) - cy0) * ny0 + (float(recf[j, 1]) - cy1) * ny1 + \
+                        (float(recf[j, 2]) - cy2) * ny2
                     if d >= -tau_h:
-                        seen = m == 1 or not _separated(x, y, buf, m, rec, tau_h, lo0, lo1, lo2, h)
-                        if seen and (rec[x, 15] != 0.0 or rec[y, 15] != 0.0):  # a surface cuts x's or y's cell
-                            seen = not _cut_between(y, x, rec, cp, cell, tau_h) and \
-                                not _cut_between(x, y, rec, cp, cell, tau_h) and \
-                                not (d < 0.0 and _cut_by(x, y, rec, cp, tau_h))
-                        if seen:
-                            w = rec[x, cw]
-                            rec[x, 8] += rec[y, 12] * w
-                            rec[x, 9] += rec[y, 13] * w
-                            rec[x, 10] += rec[y, 14] * w
-                        _unlink(head, s, nxt, prev, nx_)
+                        xe = rec[j, 6]
+                        x = xe if xe >= 0 else -xe - 1
+                        if (m == 1 and xe >= 0 and not ycut) or \
+                                not _hidden(x, y, xe < 0, ycut, d, g, m, buf, gcell, pos, cutp, tau_h):
+                            w = (float(recf[j, 3]) * ux + float(recf[j, 4]) * uy + float(recf[j, 5]) * uz) * weight
+                            acc[x, 0] += rad[y, 0] * w
+                            acc[x, 1] += rad[y, 1] * w
+                            acc[x, 2] += rad[y, 2] * w
+                        head = _unlink(j, prev, head, rec, free, nfree)
+                        nfree += 1
                     else:
-                        prev = x
-                    x = nx_
+                        prev = j
+                    j = nj
             else:
                 # y turns its back: voxels behind its plane hit that back, unless convex edge
-                z = last[s]
+                z_known = False
                 z_edge = False
-                if z != EMPTY:
-                    dz = (rec[z, 0] - cy0) * ny0 + (rec[z, 1] - cy1) * ny1 + (rec[z, 2] - cy2) * ny2
-                    ez = (cy0 - rec[z, 0]) * rec[z, 3] + (cy1 - rec[z, 1]) * rec[z, 4] + (cy2 - rec[z, 2]) * rec[z, 5]
-                    z_edge = dz < 0.0 and ez < 0.0 and dz >= -kappa_h
-                while x != EMPTY:
-                    nx_ = nxt[x]
-                    d = (rec[x, 0] - cy0) * ny0 + (rec[x, 1] - cy1) * ny1 + (rec[x, 2] - cy2) * ny2
+                while j != EMPTY:
+                    nj = rec[j, 7]
+                    d = (float(recf[j, 0]) - cy0) * ny0 + (float(recf[j, 1]) - cy1) * ny1 + \
+                        (float(recf[j, 2]) - cy2) * ny2
                     blocked = False
-                    if d < -tau_h and not z_edge:
-                        ex = (cy0 - rec[x, 0]) * rec[x, 3] + (cy1 - rec[x, 1]) * rec[x, 4] + \
-                            (cy2 - rec[x, 2]) * rec[x, 5]
-                        blocked = not (ex < 0.0 and d >= -kappa_h)
+                    if d < -tau_h:
+                        if not z_known:
+                            z_known = True
+                            z_edge = _convex_edge(last, y, pos, kappa_h)
+                        if not z_edge:
+                            ex = (cy0 - float(recf[j, 0])) * float(recf[j, 3]) + \
+                                (cy1 - float(recf[j, 1])) * float(recf[j, 4]) + \
+                                (cy2 - float(recf[j, 2])) * float(recf[j, 5])
+                            blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
-                        _unlink(head, s, nxt, prev, nx_)
+                        head = _unlink(j, prev, head, rec, free, nfree)
+                        nfree += 1
                     else:
-                        prev = x
-                    x = nx_
-                w = o * weight
-                rec[y, cw] = w
-                rec[y, 11] += w
-                nxt[y] = head[s]
-                head[s] = y
-                last[s] = y
-    for i in range(n_touched):
-        s = touched[i]
-        head[s] = UNTOUCHED
-        last[s] = EMPTY
-        if not dense:
-            hkeys[s] = EMPTY
+                        prev = j
+                    j = nj
+                acc[y, 3] += o * weight
+                if nfree > 0:
+                    nfree -= 1
+                    j = free[nfree]
+                else:
+                    j = ntop
+                    ntop += 1
+                for c in range(6):
+                    recf[j, c] = pos[y, c]
+                rec[j, 6] = -y - 1 if ycut else y
+                rec[j, 7] = head
+                head = j
+                last = y
+        tab[s, 1] = head
+        tab[s, 2] = last
 
 
 @njit(cache=True, parallel=True)
-def _gather_permuted(order, cell, frac, normal, cut, radiosity, cell_k, rec, cp):
-    """Lays the voxel data out in axis order: cell (int32) and the record
-    (centroid = cell + float32 fraction, normal, radiosity; sums zeroed)."""
+def _permute(order, st, cell, pos_all, radiosity, pos, gcell, rad):
+    """Lays the voxel data out in an axis's order."""
     n = order.shape[0]
     for i in prange(n):
         v = order[i]
+        for c in range(8):
+            pos[i, c] = pos_all[v, c]
         for c in range(3):
-            cell_k[i, c] = cell[v, c]
-            rec[i, c] = float(cell[v, c]) + float(frac[v, c])
-            rec[i, 3 + c] = normal[v, c]
-            rec[i, 8 + c] = 0.0
-            rec[i, 12 + c] = radiosity[v, c]
-        rec[i, 11] = 0.0
-        for c in range(4):
-            cp[i, c] = cut[v, c]
-        rec[i, 15] = cut[v, 4]
+            rad[i, c] = radiosity[v, c]
+    for g in prange(st.shape[0] - 1):
+        v = order[st[g]]
+        for c in range(3):
+            gcell[g, c] = cell[v, c]
 
 
-def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, cut, radiosity, vectors, axes,
-                       units, weights, offsets, tau, kappa, max_group, table_size, hashed):
+@njit(cache=True, parallel=True)
+def _scatter_add(order, acc, gathered, quad):
+    """Adds an axis's sums back in voxel order and clears them."""
+    for i in prange(order.shape[0]):
+        v = order[i]
+        for c in range(3):
+            gathered[v, c] += acc[i, c]
+            acc[i, c] = 0.0
+        quad[v] += acc[i, 3]
+        acc[i, 3] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def _families(fams, st, gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
+              size, tabs, recs, frees, bufs, bkeys, stamp0):
+    k1, k2 = (k + 1) % 3, (k + 2) % 3
+    for fi in range(fams.shape[0]):
+        f = fams[fi]
+        A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
+        mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
+        x0, x1, y0, y1, z0, z1 = cell_lo[k], cell_hi[k], cell_lo[k1], cell_hi[k1], cell_lo[k2], cell_hi[k2]
+        pmin = (min(C * x0, C * x1) - A * z1 - mu) // A
+        pmax = (max(C * x0, C * x1) - A * z0 - mu) // A
+        qmin = (min(B * x0, B * x1) - A * y1 - mu2) // A
+        qmax = (max(B * x0, B * x1) - A * y0 - mu2) // A
+        P = pmax - pmin + 1
+        dense = P * (qmax - qmin + 1) <= size
+        for sw in prange(2):
+            _sweep(st, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1],
+                   units[f, 2], weights[f], sw == 0, tau, kappa, dense, pmin, P, qmin, tabs[sw], size - 1,
+                   stamp0 + fi, recs[sw], recs[sw].view(np.float32), frees[sw], bufs[sw], bkeys[sw])
+
+
+def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, radiosity, vectors, axes, units, weights,
+                       offsets, tau, kappa, max_group, table_size, hashed):
     """Gathers radiosity over every family of a direction set.
 
-    Lengths in cells: frac (n, 3) float32 the centroid's position within its
-    cell (centroid = cell + frac, grid coordinates), normal (n, 3) float32,
-    cut (n, 5) the plane (normal, offset) of a surface that cut the voxel's
-    pieces and the voxel's side of it (0: none),
-    tau and kappa in cells. orders (3, n) int32: voxel order with axis 0, 1,
-    2 major; starts (3, ng+1) the cell boundaries in each order; cell_lo,
-    cell_hi (3,) the cells' bounding box; table_size the line table's size
-    (a power of two when hashed: some family's dense range would exceed
-    it). vectors (nf, 3) canonical s; axes (nf,) dominant axis; units (nf, 3) unit s; weights
-    (nf,) dW(s) / pi; offsets (nf, 2) line offsets mu, mu'.
+    Lengths in cells. pos_all (n, 8) float32 per voxel: centroid in grid
+    coordinates, normal, the side of the plane that cut its pieces (0:
+    none) and that plane's row in cutp (m, 7) float64 (normal, offset n.g,
+    the voxel's cell). orders (3, n) int32: voxel order with axis 0, 1, 2
+    major; starts (3, ng+1) the cell boundaries in each order; cell (n, 3)
+    int32; cell_lo, cell_hi (3,) the cells' bounding box; table_size the
+    line table's rows (a power of two when hashed: the dense range of some
+    family would exceed what the voxels need). vectors (nf, 3) canonical
+    s; axes (nf,) dominant axis; units (nf, 3) unit s; weights (nf,)
+    dW(s) / pi; offsets (nf, 2) line offsets mu, mu'.
     Returns gathered (n, 3) = sum_s B(I(x, s)) (n.s) dW / pi and the
     quadrature's own cosine integral S(n_x) (n,), both float64.
     """
@@ -313,51 +420,25 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, frac, normal, cut
     quad = np.zeros(n)
     if n == 0:
         return gathered, quad
-    scratch = _scratch(n, starts.shape[1] - 1, max_group, table_size, hashed)
-    cell_k = np.empty((n, 3), np.int32)
-    rec = np.empty((n, 16))
-    cp = np.empty((n, 4))
+    ng = starts.shape[1] - 1
+    pos = np.empty((n, 8), np.float32)
+    gcell = np.empty((ng, 3), np.int32)
+    rad = np.empty((n, 3))
+    acc = np.zeros((n, 4))
+    tabs = np.full((2, table_size, 4), -1, np.int32)
+    # waiting records: only the live ones are touched (a few per cent of n)
+    recs = np.empty((2, n, 8), np.int32)
+    frees = np.empty((2, n), np.int32)
+    bufs = np.empty((2, max_group), np.int64)
+    bkeys = np.empty((2, max_group))
+    stamp = 0
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
         if len(fams) == 0:
             continue
-        _gather_permuted(orders[k], cell, frac, normal, cut, radiosity, cell_k, rec, cp)
-        _families(fams, starts[k], cell_k, rec, cp, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
-                  table_size, *scratch)
-        _scatter_add(orders[k], rec, gathered, quad)
+        _permute(orders[k], starts[k], cell, pos_all, radiosity, pos, gcell, rad)
+        _families(fams, starts[k], gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets, k,
+                  tau, kappa, table_size, tabs, recs, frees, bufs, bkeys, stamp)
+        stamp += len(fams)
+        _scatter_add(orders[k], acc, gathered, quad)
     return gathered, quad
-
-
-def _scratch(n, ng, max_group, table_size, hashed):
-    """Per sweep (2): line table (head, last; hashed keys only when hashing),
-    linked list, touched slots, the cell's sort buffer."""
-    return (np.full((2, table_size), UNTOUCHED, np.int32), np.full((2, table_size), EMPTY, np.int32),
-            np.full((2, table_size if hashed else 1), EMPTY, np.int64), np.empty((2, n), np.int32),
-            np.empty((2, ng), np.int32), np.empty((2, max_group), np.int64), np.empty((2, max_group)))
-
-
-@njit(cache=True, parallel=True)
-def _families(fams, st, cell_k, rec, cp, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, size,
-              heads, lasts, hkeys, nxts, toucheds, bufs, bkeys):
-    k1, k2 = (k + 1) % 3, (k + 2) % 3
-    for fi in range(fams.shape[0]):
-        f = fams[fi]
-        A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
-        mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
-        pmin, P, qmin, Q = _line_bounds(cell_lo, cell_hi, k, k1, k2, A, B, C, mu, mu2)
-        dense = P * Q <= size
-        for sweep in prange(2):
-            _sweep(st, cell_k, rec, cp, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f],
-                   sweep == 0, tau, kappa, dense, pmin, P, qmin, heads[sweep], lasts[sweep], hkeys[sweep], size - 1,
-                   nxts[sweep], toucheds[sweep], bufs[sweep], bkeys[sweep])
-
-
-@njit(cache=True, parallel=True)
-def _scatter_add(order, rec, gathered, quad):
-    """Adds an axis's sums back in voxel order."""
-    for i in prange(order.shape[0]):
-        v = order[i]
-        gathered[v, 0] += rec[i, 8]
-        gathered[v, 1] += rec[i, 9]
-        gathered[v, 2] += rec[i, 10]
-        quad[v] += rec[i, 11]
