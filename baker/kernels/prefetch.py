@@ -36,18 +36,3 @@ def prefetch(typingctx, arr, idx):
         return context.get_dummy_value()
     return sig, codegen
 
-
-@intrinsic
-def unlikely(typingctx, cond):
-    """cond, with the hint that it is almost always False (llvm.expect):
-    LLVM then lays the rare path out of the way and keeps the common path's
-    values in registers instead of spilling them around the rare path's calls."""
-    if not isinstance(cond, types.Boolean):
-        return None
-    sig = types.boolean(cond)
-
-    def codegen(context, builder, sig, args):
-        i1 = ir.IntType(1)
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i1, [i1, i1]), "llvm.expect.i1")
-        return builder.call(fn, [args[0], ir.Constant(i1, 0)])
-    return sig, codegen

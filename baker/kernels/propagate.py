@@ -36,9 +36,11 @@ time their line meets a surface):
   used it: no clearing between families), head of the waiting list, last
   voxel added, hashed key;
 - waiting records (n, 8) int32 from a free list, so the live ones stay
-  few and close together: centroid and normal (float32 bits), the voxel
-  (-v-1 when cut), the next record;
-- acc (n, 4) float64 per voxel: gathered (3) and the quadrature sum S.
+  few and close together: centroid and normal (float32 bits), the voxel's
+  index in voxel order (-v-1 when cut), the next record;
+- the gathered sums (n, 3) float64 in voxel order (written once per
+  voxel and family, wherever its line met a surface), the quadrature sums
+  S (n,) in the axis's order (written as the sweep passes).
 The sweep prefetches, a few cells ahead, the table entry, then the head
 record (prefetching the head voxel's sums as well was measured to cost more
 than it saves: it needs a load of the record). The rare paths (cells with
@@ -95,7 +97,7 @@ def _find(idx, dense, tab, mask, stamp):
 
 
 @njit(cache=True)
-def _separated(x, y, buf, m, pos, tau_h, lo0, lo1, lo2):
+def _separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2):
     """Is y hidden from x by another voxel q of y's cell? True when q's plane
     lies between them (beyond tau h on each side), the segment from x's
     centroid to y's crosses that plane within half a cell of y's cell (the
@@ -105,26 +107,26 @@ def _separated(x, y, buf, m, pos, tau_h, lo0, lo1, lo2):
     for i in range(m):
         e = buf[i]
         q = e if e >= 0 else -e - 1
-        if q == x or q == y:
+        if q == y:
             continue
         sx = sy = 0.0
         for c in range(3):
             nq = float(pos[q, 3 + c])
-            sx += (float(pos[x, c]) - float(pos[q, c])) * nq
+            sx += (float(px[x, c]) - float(pos[q, c])) * nq
             sy += (float(pos[y, c]) - float(pos[q, c])) * nq
         if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
             lam = sx / (sx - sy)
-            x0, x1, x2 = float(pos[x, 0]), float(pos[x, 1]), float(pos[x, 2])
+            x0, x1, x2 = float(px[x, 0]), float(px[x, 1]), float(px[x, 2])
             y0, y1, y2 = float(pos[y, 0]), float(pos[y, 1]), float(pos[y, 2])
-            px = x0 + (y0 - x0) * lam
-            py = x1 + (y1 - x1) * lam
-            pz = x2 + (y2 - x2) * lam
-            if lo0 - 0.5 <= px <= lo0 + 1.5 and lo1 - 0.5 <= py <= lo1 + 1.5 and lo2 - 0.5 <= pz <= lo2 + 1.5:
+            p0 = x0 + (y0 - x0) * lam
+            p1 = x1 + (y1 - x1) * lam
+            p2 = x2 + (y2 - x2) * lam
+            if lo0 - 0.5 <= p0 <= lo0 + 1.5 and lo1 - 0.5 <= p1 <= lo1 + 1.5 and lo2 - 0.5 <= p2 <= lo2 + 1.5:
                 # q's piece stands where the segment crosses: on the same side
                 # of y's plane as q (a wall rising from a floor), not behind it
                 # (the side of a box under its top: a convex edge)
                 n0, n1, n2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
-                pside = (px - y0) * n0 + (py - y1) * n1 + (pz - y2) * n2
+                pside = (p0 - y0) * n0 + (p1 - y1) * n1 + (p2 - y2) * n2
                 qside = (float(pos[q, 0]) - y0) * n0 + (float(pos[q, 1]) - y1) * n1 + (float(pos[q, 2]) - y2) * n2
                 if pside * qside > 0.0:
                     return True
@@ -132,10 +134,10 @@ def _separated(x, y, buf, m, pos, tau_h, lo0, lo1, lo2):
 
 
 @njit(cache=True)
-def _cut_by(x, y, pos, cutp, tau_h):
+def _cut_by(px, x, pos, y, cutp, tau_h):
     """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
     Then x, behind y's plane even within tau, sees y's back, not its face."""
-    j = np.int64(pos[x, 7])
+    j = np.int64(px[x, 7])
     n0, n1, n2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
     dot = cutp[j, 0] * n0 + cutp[j, 1] * n1 + cutp[j, 2] * n2
     if abs(dot) <= 0.999:
@@ -145,25 +147,25 @@ def _cut_by(x, y, pos, cutp, tau_h):
 
 
 @njit(cache=True)
-def _cut_between(a, b, pos, cutp, tau_h):
+def _cut_between(pa, a, pb, b, cutp, tau_h):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
     on the other side of that plane and the segment a-b crosses it within
     CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
     surface runs past both ends), that surface stands between them."""
-    sign = float(pos[a, 6])
+    sign = float(pa[a, 6])
     if sign == 0.0:
         return False
-    j = np.int64(pos[a, 7])
+    j = np.int64(pa[a, 7])
     nx, ny, nz, d = cutp[j, 0], cutp[j, 1], cutp[j, 2], cutp[j, 3]
-    a0, a1, a2 = float(pos[a, 0]), float(pos[a, 1]), float(pos[a, 2])
-    b0, b1, b2 = float(pos[b, 0]), float(pos[b, 1]), float(pos[b, 2])
+    a0, a1, a2 = float(pa[a, 0]), float(pa[a, 1]), float(pa[a, 2])
+    b0, b1, b2 = float(pb[b, 0]), float(pb[b, 1]), float(pb[b, 2])
     sa = a0 * nx + a1 * ny + a2 * nz - d
     sb = b0 * nx + b1 * ny + b2 * nz - d
     if sb * sign >= -tau_h or sa == sb:
         return False
-    if pos[b, 6] != 0.0:
-        jb = np.int64(pos[b, 7])
+    if pb[b, 6] != 0.0:
+        jb = np.int64(pb[b, 7])
         dot = nx * cutp[jb, 0] + ny * cutp[jb, 1] + nz * cutp[jb, 2]
         if abs(dot) > 0.999 and abs(d - dot * cutp[jb, 3]) < tau_h:
             return True
@@ -194,14 +196,14 @@ def _order_cell(a, m, pos, ux, uy, uz, buf, bkey):
 
 
 @njit(cache=True)
-def _hidden(x, y, xcut, ycut, d, g, m, buf, gcell, pos, cutp, tau_h):
+def _hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h):
     """Is y, facing x's waiting ray within tau, hidden from x by another
     surface: one crossing y's cell, or one that cut x's or y's pieces?"""
-    if m > 1 and _separated(x, y, buf, m, pos, tau_h, float(gcell[g, 0]), float(gcell[g, 1]), float(gcell[g, 2])):
+    if m > 1 and _separated(px, x, pos, y, buf, m, tau_h, float(gcell[g, 0]), float(gcell[g, 1]), float(gcell[g, 2])):
         return True
     if xcut or ycut:
-        return _cut_between(y, x, pos, cutp, tau_h) or _cut_between(x, y, pos, cutp, tau_h) or \
-            (d < 0.0 and xcut and _cut_by(x, y, pos, cutp, tau_h))
+        return _cut_between(pos, y, px, x, cutp, tau_h) or _cut_between(px, x, pos, y, cutp, tau_h) or \
+            (d < 0.0 and xcut and _cut_by(px, x, pos, y, cutp, tau_h))
     return False
 
 
@@ -229,7 +231,7 @@ def _unlink(j, prev, head, rec, free, nfree):
 
 
 @njit(cache=True)
-def _sweep(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau,
+def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau,
            kappa, dense, pmin, P, qmin, tab, mask, stamp, rec, recf, free, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over the
     voxels in this axis's order (index = position in the order; lengths in
@@ -298,11 +300,11 @@ def _sweep(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, 
                         xe = rec[j, 6]
                         x = xe if xe >= 0 else -xe - 1
                         if (m == 1 and xe >= 0 and not ycut) or \
-                                not _hidden(x, y, xe < 0, ycut, d, g, m, buf, gcell, pos, cutp, tau_h):
+                                not _hidden(pos_all, x, pos, y, xe < 0, ycut, d, g, m, buf, gcell, cutp, tau_h):
                             w = (float(recf[j, 3]) * ux + float(recf[j, 4]) * uy + float(recf[j, 5]) * uz) * weight
-                            acc[x, 0] += rad[y, 0] * w
-                            acc[x, 1] += rad[y, 1] * w
-                            acc[x, 2] += rad[y, 2] * w
+                            gat[x, 0] += rad[y, 0] * w
+                            gat[x, 1] += rad[y, 1] * w
+                            gat[x, 2] += rad[y, 2] * w
                         head = _unlink(j, prev, head, rec, free, nfree)
                         nfree += 1
                     else:
@@ -332,7 +334,7 @@ def _sweep(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, 
                     else:
                         prev = j
                     j = nj
-                acc[y, 3] += o * weight
+                quad[y] += o * weight
                 if nfree > 0:
                     nfree -= 1
                     j = free[nfree]
@@ -341,7 +343,8 @@ def _sweep(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, 
                     ntop += 1
                 for c in range(6):
                     recf[j, c] = pos[y, c]
-                rec[j, 6] = -y - 1 if ycut else y
+                v = np.int64(order[y])
+                rec[j, 6] = -v - 1 if ycut else v
                 rec[j, 7] = head
                 head = j
                 last = y
@@ -366,20 +369,16 @@ def _permute(order, st, cell, pos_all, radiosity, pos, gcell, rad):
 
 
 @njit(cache=True, parallel=True)
-def _scatter_add(order, acc, gathered, quad):
-    """Adds an axis's sums back in voxel order and clears them."""
+def _scatter_add(order, quad_k, quad):
+    """Adds an axis's quadrature sums back in voxel order and clears them."""
     for i in prange(order.shape[0]):
-        v = order[i]
-        for c in range(3):
-            gathered[v, c] += acc[i, c]
-            acc[i, c] = 0.0
-        quad[v] += acc[i, 3]
-        acc[i, 3] = 0.0
+        quad[order[i]] += quad_k[i]
+        quad_k[i] = 0.0
 
 
 @njit(cache=True, parallel=True)
-def _families(fams, st, gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa,
-              size, tabs, recs, frees, bufs, bkeys, stamp0):
+def _families(fams, st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, cell_lo, cell_hi, vectors, units, weights,
+              offsets, k, tau, kappa, size, tabs, recs, frees, bufs, bkeys, stamp0):
     k1, k2 = (k + 1) % 3, (k + 2) % 3
     for fi in range(fams.shape[0]):
         f = fams[fi]
@@ -393,8 +392,8 @@ def _families(fams, st, gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, u
         P = pmax - pmin + 1
         dense = P * (qmax - qmin + 1) <= size
         for sw in prange(2):
-            _sweep(st, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1],
-                   units[f, 2], weights[f], sw == 0, tau, kappa, dense, pmin, P, qmin, tabs[sw], size - 1,
+            _sweep(st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, k, k1, k2, A, B, C, mu, mu2, units[f, 0],
+                   units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa, dense, pmin, P, qmin, tabs[sw], size - 1,
                    stamp0 + fi, recs[sw], recs[sw].view(np.float32), frees[sw], bufs[sw], bkeys[sw])
 
 
@@ -424,7 +423,7 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
     pos = np.empty((n, 8), np.float32)
     gcell = np.empty((ng, 3), np.int32)
     rad = np.empty((n, 3))
-    acc = np.zeros((n, 4))
+    quad_k = np.zeros(n)
     tabs = np.full((2, table_size, 4), -1, np.int32)
     # waiting records: only the live ones are touched (a few per cent of n)
     recs = np.empty((2, n, 8), np.int32)
@@ -437,8 +436,8 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
         if len(fams) == 0:
             continue
         _permute(orders[k], starts[k], cell, pos_all, radiosity, pos, gcell, rad)
-        _families(fams, starts[k], gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets, k,
-                  tau, kappa, table_size, tabs, recs, frees, bufs, bkeys, stamp)
+        _families(fams, starts[k], gcell, orders[k], pos, pos_all, cutp, rad, gathered, quad_k, cell_lo, cell_hi,
+                  vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees, bufs, bkeys, stamp)
         stamp += len(fams)
-        _scatter_add(orders[k], acc, gathered, quad)
+        _scatter_add(orders[k], quad_k, quad)
     return gathered, quad
