@@ -100,8 +100,9 @@ class LineSweeper:
         p = (c * ext[k] + a * ext[(k + 2) % 3]) // a + 2
         q = (b * ext[k] + a * ext[(k + 1) % 3]) // a + 2
         need = int((p * q).max())
-        if need >= 2 ** 31 and self.table_size >= 2 ** 31:
-            raise ValueError("the voxel grid is too large for the propagation's line table")
+        if need >= 2 ** 31:  # line ids are int32 keys in the table
+            raise ValueError(f"the voxel grid ({(self.cell_hi - self.cell_lo + 1).tolist()} cells) is too large "
+                             "for the propagation's line table")
         if need <= self.table_size:
             return need, False
         return self.table_size, True
@@ -111,7 +112,7 @@ class LineSweeper:
         """Working memory of a bounce beyond the voxel arrays (the line
         tables at their largest; waiting records not counted: only the live
         ones are touched, a few per cent of the voxels)."""
-        per_voxel = 32 + 24 + 32 + 24 + 8  # axis copy, its radiosity, its sums, the output
+        per_voxel = 32 + 24 + 8 + 24 + 8  # axis copy, its radiosity, its S sums, the outputs
         return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
             12 * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel
 
