@@ -11,7 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from .directions import DirectionSet
-from .kernels.propagate import propagate_families
+import os
+
+from .kernels.propagate import propagate_families, propagate_families_pull
 from .kernels.rng import rand01
 
 TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
@@ -129,7 +131,8 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
+        fn = propagate_families if os.environ.get('VOXGI_PUSH') else propagate_families_pull
+        return fn(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
                                   self.cutp, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
                                   self.max_group, *self.line_table(dirs))
