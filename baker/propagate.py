@@ -11,9 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .directions import DirectionSet
-import os
-
-from .kernels.propagate import propagate_families, propagate_families_pull
+from .kernels.propagate import propagate_families
 from .kernels.rng import rand01
 
 TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
@@ -131,8 +129,7 @@ class LineSweeper:
     def gather(self, radiosity, dirs: DirectionSet, offsets):
         """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
         quadrature's cosine integral per voxel."""
-        fn = propagate_families if os.environ.get('VOXGI_PUSH') else propagate_families_pull
-        return fn(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
+        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
                                   self.cutp, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
                                   dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
                                   self.max_group, *self.line_table(dirs))

@@ -20,7 +20,8 @@ from .kernels.voxelize import (cell_runs, clip_pieces, count_candidates, find_st
 SHEET_GAP = 0.1          # in cells: pieces on planes further apart are separate voxels
 MIN_SPLIT_PART = 1e-6    # in cells^2: a piece is cut by another surface's plane when both parts are larger
 MIN_SEPARATION = 0.01    # in cells: pieces this far on both sides of a surface's plane are told apart
-MIN_PIECE_AREA = 1e-10   # in cells^2: below this a clipped piece is rounding noise
+MIN_PIECE_AREA = 1e-14   # in cells^2: below this a clipped piece is rounding noise (slivers above it
+#                          are kept: a plane passing 1e-6 cell from a corner still separates the lines there)
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
 

@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from baker.errors import BudgetError
 from baker.propagate import LineSweeper
@@ -147,6 +147,7 @@ def _line_cells(cell_lo, cell_hi, vec, axis, mu, mu2):
 
 @settings(max_examples=12, deadline=None)
 @given(st.integers(0, 2**31 - 1))
+@example(seed=411)  # the plane passes 1.6e-6 cell from a corner: a sliver piece must be kept
 def test_voxelization_is_26_separating(tmp_path_factory, seed):
     """A random tilted plane (one one-sided quad) through the unit cube: no
     naive digital line of any family in D_2 (random offsets) goes from a

@@ -66,37 +66,6 @@ def _hash(idx, mask):
     return np.int64(h & np.uint64(mask))
 
 
-@njit(cache=True, inline="always")
-def _claim(idx, dense, tab, mask, stamp):
-    """Slot of line idx in the table, set up empty if this family has not
-    used it yet (dense: the id is the slot; else open addressing)."""
-    s = idx if dense else _hash(idx, mask)
-    while True:
-        su = np.uint64(s)
-        if tab[su, 0] != stamp:
-            tab[su, 0] = stamp
-            tab[su, 1] = EMPTY
-            tab[su, 2] = EMPTY
-            tab[su, 3] = idx
-            return s
-        if dense or tab[su, 3] == idx:
-            return s
-        s = (s + 1) & mask
-
-
-@njit(cache=True, inline="always")
-def _find(idx, dense, tab, mask, stamp):
-    """Slot of line idx if this family uses it, else -1 (read only)."""
-    if dense:
-        return idx if tab[np.uint64(idx), 0] == stamp else EMPTY
-    s = _hash(idx, mask)
-    while tab[np.uint64(s), 0] == stamp:
-        if tab[np.uint64(s), 3] == idx:
-            return s
-        s = (s + 1) & mask
-    return EMPTY
-
-
 @njit(cache=True)
 def _separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2):
     """Is y hidden from x by another voxel q of y's cell? True when q's plane
@@ -220,29 +189,54 @@ def _convex_edge(z, y, pos, kappa_h):
 
 
 @njit(cache=True, inline="always")
-def _unlink(j, prev, head, rec, free, nfree):
-    """Removes record j (after prev, or the head) from its list and frees
-    it: returns the new head."""
-    if prev == EMPTY:
-        head = rec[j, 7]
-    else:
-        rec[prev, 7] = rec[j, 7]
-    free[nfree] = j
-    return head
+def _claim(idx, dense, tab, mask, stamp):
+    """Row offset of line idx in the flat table (4 int32 per line: stamp,
+    head, last, key), set up empty if this family has not used it yet
+    (dense: the id is the row; else open addressing)."""
+    s = idx if dense else _hash(idx, mask)
+    while True:
+        r = np.uint64(4 * s)
+        if tab[r] != stamp:
+            tab[r] = stamp
+            tab[r + np.uint64(1)] = EMPTY
+            tab[r + np.uint64(2)] = EMPTY
+            tab[r + np.uint64(3)] = idx
+            return r
+        if dense or tab[r + np.uint64(3)] == idx:
+            return r
+        s = (s + 1) & mask
+
+
+@njit(cache=True, inline="always")
+def _find(idx, dense, tab, mask, stamp):
+    """Row offset of line idx if this family uses it, else -1 (read only)."""
+    if dense:
+        return 4 * idx if tab[np.uint64(4 * idx)] == stamp else EMPTY
+    s = _hash(idx, mask)
+    while tab[np.uint64(4 * s)] == stamp:
+        if tab[np.uint64(4 * s + 3)] == idx:
+            return 4 * s
+        s = (s + 1) & mask
+    return EMPTY
 
 
 @njit(cache=True)
-def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight,
+def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, A, B, C, mu, mu2, ux, uy, uz, weight,
            forward, tau, kappa, dense, pmin, P, qmin, tab, mask, stamp, rec, recf, free, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over the
     voxels in this axis's order (index = position in the order; lengths in
     cells). gcell (ng, 3) int32 the cells, starts (ng + 1,) their voxels.
-    Rows are indexed through unsigned copies of the indices (yu, ju, su...):
-    numba then skips the negative-index wrap-around, a third of the
-    instructions of this loop."""
+    The hot arrays come flat (pos, gcell, rad, gat, tab, rec, recf: rows of
+    8, 3, 3, 3, 4, 8, 8) and are indexed with unsigned offsets: numba then
+    needs neither the rows' strides (registers) nor wrap-around code for
+    negative indices; together, half the instructions of this loop."""
+    pos2 = pos.reshape((-1, 8))
+    gcell2 = gcell.reshape((-1, 3))
     ng = starts.shape[0] - 1
     if not forward:
         ux, uy, uz = -ux, -uy, -uz
+    g0 = 0 if forward else ng - 1
+    gstep = 1 if forward else -1
     tau_h = tau
     kappa_h = kappa
     nfree = 0
@@ -250,77 +244,81 @@ def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, k1, k2, 
     ring = np.empty(RING, np.int64)  # line ids of the next cells
     xa = np.int64(-(2 ** 62))
     pa = qa = np.int64(0)
-    uk, uk1, uk2 = np.uint64(k), np.uint64(k1), np.uint64(k2)
+    ck = np.uint64(k)
+    ck1 = np.uint64((k + 1) % 3)
+    ck2 = np.uint64((k + 2) % 3)
+    U1 = np.uint64(1)
+    U2 = np.uint64(2)
     for i0 in range(-AHEAD_TABLE, ng):
         # the prefetch pipeline: line id and table entry, head record
         ia = i0 + AHEAD_TABLE
         if ia < ng:
-            gau = np.uint64(ia if forward else ng - 1 - ia)
-            X = np.int64(gcell[gau, uk])
+            r = np.uint64(3 * (g0 + gstep * ia))
+            X = np.int64(gcell[r + ck])
             if X != xa:
                 # floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one division per slab of X
                 xa = X
                 pa = (C * X - mu) // A
                 qa = (B * X - mu2) // A
-            idx = (qa - np.int64(gcell[gau, uk1]) - qmin) * P + (pa - np.int64(gcell[gau, uk2]) - pmin)
+            idx = (qa - np.int64(gcell[r + ck1]) - qmin) * P + (pa - np.int64(gcell[r + ck2]) - pmin)
             ring[np.uint64(ia & (RING - 1))] = idx
-            prefetch(tab, idx if dense else _hash(idx, mask))
+            prefetch(tab, 4 * (idx if dense else _hash(idx, mask)))
         ib = i0 + AHEAD_HEAD
         if 0 <= ib < ng:
-            sb = _find(ring[np.uint64(ib & (RING - 1))], dense, tab, mask, stamp)
-            if sb != EMPTY:
-                hb = tab[np.uint64(sb), 1]
+            rb = _find(ring[np.uint64(ib & (RING - 1))], dense, tab, mask, stamp)
+            if rb != EMPTY:
+                hb = tab[np.uint64(rb + 1)]
                 if hb != EMPTY:
-                    prefetch(rec, hb)
+                    prefetch(rec, 8 * hb)
         if i0 < 0:
             continue
-        g = i0 if forward else ng - 1 - i0
-        s = _claim(ring[np.uint64(i0 & (RING - 1))], dense, tab, mask, stamp)
-        su = np.uint64(s)
-        head = np.int64(tab[su, 1])
-        last = np.int64(tab[su, 2])
-        gu = np.uint64(g)
-        a, b = np.int64(starts[gu]), np.int64(starts[gu + np.uint64(1)])
+        g = g0 + gstep * i0
+        tr = _claim(ring[np.uint64(i0 & (RING - 1))], dense, tab, mask, stamp)
+        head = np.int64(tab[tr + U1])
+        last = np.int64(tab[tr + U2])
+        a, b = np.int64(starts[np.uint64(g)]), np.int64(starts[np.uint64(g + 1)])
         # the cell's voxels in order along the sweep; ties: +1 before -1
         m = b - a
         if m > 1:
-            _order_cell(a, m, pos, ux, uy, uz, buf, bkey)
+            _order_cell(a, m, pos2, ux, uy, uz, buf, bkey)
         for i in range(m):
             if m == 1:
                 y = a
             else:
                 e = buf[i]
                 y = e if e >= 0 else -e - 1
-            yu = np.uint64(y)
-            ny0, ny1, ny2 = float(pos[yu, 3]), float(pos[yu, 4]), float(pos[yu, 5])
+            yr = np.uint64(8 * y)
+            ny0, ny1, ny2 = float(pos[yr + np.uint64(3)]), float(pos[yr + np.uint64(4)]), float(pos[yr + np.uint64(5)])
             o = ny0 * ux + ny1 * uy + ny2 * uz
             if o == 0.0:
                 continue  # parallel to the line: neither sends nor receives
-            cy0, cy1, cy2 = float(pos[yu, 0]), float(pos[yu, 1]), float(pos[yu, 2])
-            ycut = pos[yu, 6] != 0.0
+            cy0, cy1, cy2 = float(pos[yr]), float(pos[yr + U1]), float(pos[yr + U2])
+            ycut = pos[yr + np.uint64(6)] != 0.0
             prev = EMPTY
             j = head
             if o < 0.0:
                 # y faces the rays: waiting voxels in front of (or near) its plane see it
                 while j != EMPTY:
-                    ju = np.uint64(j)
-                    nj = np.int64(rec[ju, 7])
-                    d = (float(recf[ju, 0]) - cy0) * ny0 + (float(recf[ju, 1]) - cy1) * ny1 + \
-                        (float(recf[ju, 2]) - cy2) * ny2
+                    jr = np.uint64(8 * j)
+                    nj = np.int64(rec[jr + np.uint64(7)])
+                    d = (float(recf[jr]) - cy0) * ny0 + (float(recf[jr + U1]) - cy1) * ny1 + \
+                        (float(recf[jr + U2]) - cy2) * ny2
                     if d >= -tau_h:
-                        xe = np.int64(rec[ju, 6])
+                        xe = np.int64(rec[jr + np.uint64(6)])
                         x = xe if xe >= 0 else -xe - 1
                         if (m == 1 and xe >= 0 and not ycut) or \
-                                not _hidden(pos_all, x, pos, y, xe < 0, ycut, d, g, m, buf, gcell, cutp, tau_h):
-                            w = (float(recf[ju, 3]) * ux + float(recf[ju, 4]) * uy + float(recf[ju, 5]) * uz) * weight
-                            xu = np.uint64(x)
-                            gat[xu, 0] += rad[yu, 0] * w
-                            gat[xu, 1] += rad[yu, 1] * w
-                            gat[xu, 2] += rad[yu, 2] * w
+                                not _hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell2, cutp, tau_h):
+                            w = (float(recf[jr + np.uint64(3)]) * ux + float(recf[jr + np.uint64(4)]) * uy +
+                                 float(recf[jr + np.uint64(5)]) * uz) * weight
+                            xr = np.uint64(3 * x)
+                            y3 = np.uint64(3 * y)
+                            gat[xr] += rad[y3] * w
+                            gat[xr + U1] += rad[y3 + U1] * w
+                            gat[xr + U2] += rad[y3 + U2] * w
                         if prev == EMPTY:
                             head = nj
                         else:
-                            rec[np.uint64(prev), 7] = nj
+                            rec[np.uint64(8 * prev + 7)] = nj
                         free[np.uint64(nfree)] = j
                         nfree += 1
                     else:
@@ -331,47 +329,47 @@ def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, k1, k2, 
                 z_known = False
                 z_edge = False
                 while j != EMPTY:
-                    ju = np.uint64(j)
-                    nj = np.int64(rec[ju, 7])
-                    d = (float(recf[ju, 0]) - cy0) * ny0 + (float(recf[ju, 1]) - cy1) * ny1 + \
-                        (float(recf[ju, 2]) - cy2) * ny2
+                    jr = np.uint64(8 * j)
+                    nj = np.int64(rec[jr + np.uint64(7)])
+                    d = (float(recf[jr]) - cy0) * ny0 + (float(recf[jr + U1]) - cy1) * ny1 + \
+                        (float(recf[jr + U2]) - cy2) * ny2
                     blocked = False
                     if d < -tau_h:
                         if not z_known:
                             z_known = True
-                            z_edge = _convex_edge(last, y, pos, kappa_h)
+                            z_edge = _convex_edge(last, y, pos2, kappa_h)
                         if not z_edge:
-                            ex = (cy0 - float(recf[ju, 0])) * float(recf[ju, 3]) + \
-                                (cy1 - float(recf[ju, 1])) * float(recf[ju, 4]) + \
-                                (cy2 - float(recf[ju, 2])) * float(recf[ju, 5])
+                            ex = (cy0 - float(recf[jr])) * float(recf[jr + np.uint64(3)]) + \
+                                (cy1 - float(recf[jr + U1])) * float(recf[jr + np.uint64(4)]) + \
+                                (cy2 - float(recf[jr + U2])) * float(recf[jr + np.uint64(5)])
                             blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
                         if prev == EMPTY:
                             head = nj
                         else:
-                            rec[np.uint64(prev), 7] = nj
+                            rec[np.uint64(8 * prev + 7)] = nj
                         free[np.uint64(nfree)] = j
                         nfree += 1
                     else:
                         prev = j
                     j = nj
-                quad[yu] += o * weight
+                quad[np.uint64(y)] += o * weight
                 if nfree > 0:
                     nfree -= 1
                     j = np.int64(free[np.uint64(nfree)])
                 else:
                     j = ntop
                     ntop += 1
-                ju = np.uint64(j)
+                jr = np.uint64(8 * j)
                 for c in range(6):
-                    recf[ju, c] = pos[yu, c]
-                v = np.int64(order[yu])
-                rec[ju, 6] = -v - 1 if ycut else v
-                rec[ju, 7] = head
+                    recf[jr + np.uint64(c)] = pos[yr + np.uint64(c)]
+                v = np.int64(order[np.uint64(y)])
+                rec[jr + np.uint64(6)] = -v - 1 if ycut else v
+                rec[jr + np.uint64(7)] = head
                 head = j
                 last = y
-        tab[su, 1] = head
-        tab[su, 2] = last
+        tab[tr + U1] = head
+        tab[tr + U2] = last
 
 
 @njit(cache=True, parallel=True)
@@ -414,9 +412,10 @@ def _families(fams, st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, cell
         P = pmax - pmin + 1
         dense = P * (qmax - qmin + 1) <= size
         for sw in prange(2):
-            _sweep(st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, k, k1, k2, A, B, C, mu, mu2, units[f, 0],
-                   units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa, dense, pmin, P, qmin, tabs[sw], size - 1,
-                   stamp0 + fi, recs[sw], recs[sw].view(np.float32), frees[sw], bufs[sw], bkeys[sw])
+            _sweep(st, gcell.reshape(-1), order, pos.reshape(-1), pos_all, cutp, rad.reshape(-1), gat.reshape(-1),
+                   quad_k, k, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa,
+                   dense, pmin, P, qmin, tabs[sw].reshape(-1), size - 1, stamp0 + fi, recs[sw].reshape(-1),
+                   recs[sw].view(np.float32).reshape(-1), frees[sw], bufs[sw], bkeys[sw])
 
 
 def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, radiosity, vectors, axes, units, weights,
@@ -464,266 +463,3 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
         _scatter_add(orders[k], quad_k, quad)
     return gathered, quad
 
-
-# ---- the pull sweep: senders gather as the sweep reaches them ----------------------------------------------
-#
-# Sweeping the voxels in the order opposite to the rays (the order of -u for rays along u), a
-# voxel x sending along u meets, on its line, the voxels its ray would cross, nearest first:
-# they were visited before it. Each line keeps that history, newest first: the newest item
-# inline in the line's item (its centroid, normal, radiosity, flags), older ones in a pool.
-# x scans it with the same tests the waiting list applies (a receiver within tau: gather, or
-# hidden: 0; a back face beyond tau: blocked unless a convex edge with x or with the last
-# back face passed), so the result is identical; but x's sums are written as the sweep
-# passes x (in sequence), and what it reads is the line's item, fetched ahead.
-HF_VOXEL = (1 << 28) - 1
-HF_CUT = 1 << 28
-HF_RECEIVER = 1 << 29
-HF_MULTI = 1 << 30
-
-
-@njit(cache=True)
-def _hidden_pull(x, h, d, starts, gcell, pos, cutp, tau_h):
-    """_hidden for a scanner x and a history item h (both axis positions)."""
-    if pos[h, 6] != 0.0 or pos[x, 6] != 0.0:
-        if _cut_between(pos, h, pos, x, cutp, tau_h) or _cut_between(pos, x, pos, h, cutp, tau_h) or \
-                (d < 0.0 and pos[x, 6] != 0.0 and _cut_by(pos, x, pos, h, cutp, tau_h)):
-            return True
-    g = np.searchsorted(starts, h, "right") - 1
-    a, b = starts[g], starts[g + 1]
-    if b - a > 1:
-        buf = np.empty(b - a, np.int64)
-        for i in range(b - a):
-            buf[i] = a + i
-        return _separated(pos, x, pos, h, buf, b - a, tau_h, float(gcell[g, 0]), float(gcell[g, 1]),
-                          float(gcell[g, 2]))
-    return False
-
-
-@njit(cache=True)
-def _scan_deep(x, j, pool, pos, rad, starts, gcell, cutp, ux, uy, uz, tau_h, kappa_h, zc0, zc1, zc2, zn0, zn1, zn2,
-               out):
-    """Continues x's scan at pool record j (items older than the inline
-    one, read from pos and rad). Writes the gathered radiosity into out
-    (3,) and returns True when x gathers."""
-    cx0, cx1, cx2 = float(pos[x, 0]), float(pos[x, 1]), float(pos[x, 2])
-    nx0, nx1, nx2 = float(pos[x, 3]), float(pos[x, 4]), float(pos[x, 5])
-    while j != EMPTY:
-        hf = pool[j, 0]
-        h = hf & HF_VOXEL
-        c0, c1, c2 = float(pos[h, 0]), float(pos[h, 1]), float(pos[h, 2])
-        n0, n1, n2 = float(pos[h, 3]), float(pos[h, 4]), float(pos[h, 5])
-        d = (cx0 - c0) * n0 + (cx1 - c1) * n1 + (cx2 - c2) * n2
-        if hf & HF_RECEIVER:
-            if d >= -tau_h:
-                if (hf & (HF_CUT | HF_MULTI)) or pos[x, 6] != 0.0:
-                    if _hidden_pull(x, h, d, starts, gcell, pos, cutp, tau_h):
-                        return False
-                out[0] = rad[h, 0]
-                out[1] = rad[h, 1]
-                out[2] = rad[h, 2]
-                return True
-        else:
-            if d < -tau_h:
-                dz = (zc0 - c0) * n0 + (zc1 - c1) * n1 + (zc2 - c2) * n2
-                ez = (c0 - zc0) * zn0 + (c1 - zc1) * zn1 + (c2 - zc2) * zn2
-                ex = (c0 - cx0) * nx0 + (c1 - cx1) * nx1 + (c2 - cx2) * nx2
-                if not (dz < 0.0 and ez < 0.0 and dz >= -kappa_h) and not (ex < 0.0 and d >= -kappa_h):
-                    return False
-            zc0, zc1, zc2, zn0, zn1, zn2 = c0, c1, c2, n0, n1, n2
-        j = pool[j, 1]
-    return False
-
-
-@njit(cache=True)
-def _sweep_pull(starts, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, ux, uy, uz, weight, forward, tau,
-                kappa, dense, pmin, P, qmin, tab, mask, stamp, items, itemsf, itemsd, pool, buf, bkey, out):
-    """One sweep: in the axis order (forward) for rays along -s, in reverse
-    for rays along +s; every voxel sending along the rays gathers from its
-    line's history, every voxel not parallel to the line joins it."""
-    ng = starts.shape[0] - 1
-    if forward:
-        ux, uy, uz = -ux, -uy, -uz
-    tau_h = tau
-    kappa_h = kappa
-    ntop = 0   # pool records used
-    nitem = 0  # line items used by this family
-    ring = np.empty(RING, np.int64)
-    xa = np.int64(-(2 ** 62))
-    pa = qa = np.int64(0)
-    for i0 in range(-AHEAD_TABLE, ng):
-        ia = i0 + AHEAD_TABLE
-        if ia < ng:
-            ga = ia if forward else ng - 1 - ia
-            X = np.int64(gcell[ga, k])
-            if X != xa:
-                xa = X
-                pa = (C * X - mu) // A
-                qa = (B * X - mu2) // A
-            idx = (qa - np.int64(gcell[ga, k1]) - qmin) * P + (pa - np.int64(gcell[ga, k2]) - pmin)
-            ring[ia & (RING - 1)] = idx
-            prefetch(tab, idx if dense else _hash(idx, mask))
-        ib = i0 + AHEAD_HEAD
-        if 0 <= ib < ng:
-            sb = _find(ring[ib & (RING - 1)], dense, tab, mask, stamp)
-            if sb != EMPTY:
-                prefetch(items, tab[sb, 2])
-        if i0 < 0:
-            continue
-        g = i0 if forward else ng - 1 - i0
-        s = _claim(ring[i0 & (RING - 1)], dense, tab, mask, stamp)
-        it = tab[s, 2]
-        if it == EMPTY:
-            it = nitem
-            nitem += 1
-            tab[s, 2] = it
-            items[it, 0] = EMPTY
-            items[it, 1] = EMPTY
-        a, b = starts[g], starts[g + 1]
-        m = b - a
-        if m > 1:
-            _order_cell(a, m, pos, ux, uy, uz, buf, bkey)
-        for i in range(m):
-            if m == 1:
-                y = a
-            else:
-                e = buf[m - 1 - i]  # the cell's voxels against the rays
-                y = e if e >= 0 else -e - 1
-            ny0, ny1, ny2 = float(pos[y, 3]), float(pos[y, 4]), float(pos[y, 5])
-            o = ny0 * ux + ny1 * uy + ny2 * uz
-            if o == 0.0:
-                continue
-            cy0, cy1, cy2 = float(pos[y, 0]), float(pos[y, 1]), float(pos[y, 2])
-            hf_old = items[it, 0]
-            if o > 0.0:
-                # y sends along the rays: scan its line's history, nearest first
-                w = o * weight
-                acc[y, 3] += w
-                if hf_old != EMPTY:
-                    c0, c1, c2 = float(itemsf[it, 2]), float(itemsf[it, 3]), float(itemsf[it, 4])
-                    n0, n1, n2 = float(itemsf[it, 5]), float(itemsf[it, 6]), float(itemsf[it, 7])
-                    d = (cy0 - c0) * n0 + (cy1 - c1) * n1 + (cy2 - c2) * n2
-                    if hf_old & HF_RECEIVER:
-                        if d >= -tau_h:
-                            if not ((hf_old & (HF_CUT | HF_MULTI)) or pos[y, 6] != 0.0) or \
-                                    not _hidden_pull(y, hf_old & HF_VOXEL, d, starts, gcell, pos, cutp, tau_h):
-                                acc[y, 0] += itemsd[it, 4] * w
-                                acc[y, 1] += itemsd[it, 5] * w
-                                acc[y, 2] += itemsd[it, 6] * w
-                        elif _scan_deep(y, items[it, 1], pool, pos, rad, starts, gcell, cutp, ux, uy, uz, tau_h,
-                                        kappa_h, cy0, cy1, cy2, ny0, ny1, ny2, out):
-                            acc[y, 0] += out[0] * w
-                            acc[y, 1] += out[1] * w
-                            acc[y, 2] += out[2] * w
-                    else:
-                        passed = True
-                        if d < -tau_h:
-                            # a back face beyond tau: blocked unless y (the last sender before it) and it form a
-                            # convex edge
-                            ex = (c0 - cy0) * ny0 + (c1 - cy1) * ny1 + (c2 - cy2) * ny2
-                            passed = ex < 0.0 and d >= -kappa_h
-                        if passed and _scan_deep(y, items[it, 1], pool, pos, rad, starts, gcell, cutp, ux, uy, uz,
-                                                 tau_h, kappa_h, c0, c1, c2, n0, n1, n2, out):
-                            acc[y, 0] += out[0] * w
-                            acc[y, 1] += out[1] * w
-                            acc[y, 2] += out[2] * w
-            # y joins the history: the inline item moves to the pool
-            if hf_old != EMPTY:
-                pool[ntop, 0] = hf_old
-                pool[ntop, 1] = items[it, 1]
-                items[it, 1] = ntop
-                ntop += 1
-            hf = y
-            if o < 0.0:
-                hf |= HF_RECEIVER
-            if pos[y, 6] != 0.0:
-                hf |= HF_CUT
-            if m > 1:
-                hf |= HF_MULTI
-            items[it, 0] = hf
-            itemsf[it, 2] = pos[y, 0]
-            itemsf[it, 3] = pos[y, 1]
-            itemsf[it, 4] = pos[y, 2]
-            itemsf[it, 5] = pos[y, 3]
-            itemsf[it, 6] = pos[y, 4]
-            itemsf[it, 7] = pos[y, 5]
-            itemsd[it, 4] = rad[y, 0]
-            itemsd[it, 5] = rad[y, 1]
-            itemsd[it, 6] = rad[y, 2]
-
-
-@njit(cache=True, parallel=True)
-def _families_pull(fams, st, gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets, k, tau,
-                   kappa, size, tabs, items, pools, bufs, bkeys, outs, stamp0):
-    k1, k2 = (k + 1) % 3, (k + 2) % 3
-    for fi in range(fams.shape[0]):
-        f = fams[fi]
-        A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
-        mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
-        x0, x1, y0, y1, z0, z1 = cell_lo[k], cell_hi[k], cell_lo[k1], cell_hi[k1], cell_lo[k2], cell_hi[k2]
-        pmin = (min(C * x0, C * x1) - A * z1 - mu) // A
-        pmax = (max(C * x0, C * x1) - A * z0 - mu) // A
-        qmin = (min(B * x0, B * x1) - A * y1 - mu2) // A
-        qmax = (max(B * x0, B * x1) - A * y0 - mu2) // A
-        P = pmax - pmin + 1
-        dense = P * (qmax - qmin + 1) <= size
-        for sw in prange(2):
-            _sweep_pull(st, gcell, pos, cutp, rad, acc, k, k1, k2, A, B, C, mu, mu2, units[f, 0], units[f, 1],
-                        units[f, 2], weights[f], sw == 0, tau, kappa, dense, pmin, P, qmin, tabs[sw], size - 1,
-                        stamp0 + fi, items[sw], items[sw].view(np.float32), items[sw].view(np.float64), pools[sw],
-                        bufs[sw], bkeys[sw], outs[sw])
-
-
-@njit(cache=True, parallel=True)
-def _scatter_acc(order, acc, gathered, quad):
-    """Adds an axis's sums (gathered, S) back in voxel order and clears them."""
-    for i in prange(order.shape[0]):
-        v = order[i]
-        for c in range(3):
-            gathered[v, c] += acc[i, c]
-            acc[i, c] = 0.0
-        quad[v] += acc[i, 3]
-        acc[i, 3] = 0.0
-
-
-def _aligned(shape, dtype, align=64):
-    """np.empty with the first element on an `align`-byte boundary (rows of
-    64 bytes then each sit in one cache line)."""
-    dtype = np.dtype(dtype)
-    count = int(np.prod(shape))
-    raw = np.empty(count * dtype.itemsize + align, np.uint8)
-    off = (-raw.ctypes.data) % align
-    return raw[off:off + count * dtype.itemsize].view(dtype).reshape(shape)
-
-
-def propagate_families_pull(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, radiosity, vectors, axes, units,
-                            weights, offsets, tau, kappa, max_group, table_size, hashed):
-    """propagate_families by pull sweeps (same arguments, same result)."""
-    n = cell.shape[0]
-    gathered = np.zeros((n, 3))
-    quad = np.zeros(n)
-    if n == 0:
-        return gathered, quad
-    if n > HF_VOXEL:
-        raise ValueError("too many voxels for the propagation's 28-bit voxel index")
-    ng = starts.shape[1] - 1
-    pos = np.empty((n, 8), np.float32)
-    gcell = np.empty((ng, 3), np.int32)
-    rad = np.empty((n, 3))
-    acc = np.zeros((n, 4))
-    tabs = np.full((2, table_size, 4), -1, np.int32)
-    items = _aligned((2, ng, 16), np.int32)   # only the lines a family meets are touched
-    pools = np.empty((2, n, 2), np.int32)
-    bufs = np.empty((2, max_group), np.int64)
-    bkeys = np.empty((2, max_group))
-    outs = np.empty((2, 3))
-    stamp = 0
-    for k in range(3):
-        fams = np.nonzero(axes == k)[0]
-        if len(fams) == 0:
-            continue
-        _permute(orders[k], starts[k], cell, pos_all, radiosity, pos, gcell, rad)
-        _families_pull(fams, starts[k], gcell, pos, cutp, rad, acc, cell_lo, cell_hi, vectors, units, weights, offsets,
-                       k, tau, kappa, table_size, tabs, items, pools, bufs, bkeys, outs, stamp)
-        stamp += len(fams)
-        _scatter_acc(orders[k], acc, gathered, quad)
-    return gathered, quad
