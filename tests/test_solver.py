@@ -237,6 +237,58 @@ def test_punctual_light_photons(tmp_path):
     assert np.abs(h1 / (2.0 * cos) - 1).max() < 0.1
 
 
+def test_sun_through_a_window_is_guided_and_unbiased(tmp_path):
+    """A closed room (one-sided, inward) with a window in its roof, under a
+    sun of irradiance E: the power that enters, E A cos(theta), all lands
+    inside. Guided sun photons (a pilot pass learns where they land) must
+    deposit that power (unbiased), land far more often than photons spread
+    over the sun's whole disc, and light the floor patch under the window
+    with H_1 = E cos(theta)."""
+    import baker.photons as photons
+    from baker.scene import load_scene
+    from scenes.generate import GltfBuilder, box, merge, quad
+    b = GltfBuilder()
+    m = b.material("room", (0.5,) * 3)
+    y, w0, w1 = 1.0, 0.4, 0.6   # roof height, window span in x and z
+    roof = merge(quad((0, y, 0), (1, y, 0), (1, y, w0), (0, y, w0), facing=(0, -1, 0)),
+                 quad((0, y, w1), (1, y, w1), (1, y, 1), (0, y, 1), facing=(0, -1, 0)),
+                 quad((0, y, w0), (w0, y, w0), (w0, y, w1), (0, y, w1), facing=(0, -1, 0)),
+                 quad((w1, y, w0), (1, y, w0), (1, y, w1), (w1, y, w1), facing=(0, -1, 0)))
+    b.mesh("walls", *box((0, 0, 0), (1, y, 1), inward=True, skip=("+y",)), m)
+    b.mesh("roof", *roof, m)
+    d = np.array([0.2, -1.0, 0.1])
+    d /= np.linalg.norm(d)
+    e = 3.0
+    b.light("sun", "directional", intensity=e, direction=d)
+    b.save(tmp_path / "room.glb")
+    scene = load_scene(tmp_path / "room.glb")
+    cos = -d[1]
+    entering = e * (w1 - w0) ** 2 * cos
+    n = 400_000
+    config = solver_config("default", resolution=40, photons=n, max_bounces=1)
+    sol = solve(scene, config)
+    deposited = sol.photon_power[:, 0].sum()
+    assert abs(deposited / entering - 1) < 0.01  # measured 3e-4
+    landed_guided = sol.info["photons_landed"]
+    floor_before = photons.GUIDE_FLOOR
+    try:
+        photons.GUIDE_FLOOR = 1.0  # no guiding: even over the disc
+        plain = solve(scene, config)
+    finally:
+        photons.GUIDE_FLOOR = floor_before
+    assert abs(plain.photon_power[:, 0].sum() / entering - 1) < 0.05
+    assert landed_guided > 5 * plain.info["photons_landed"]  # measured 51x
+    # the sunlit patch on the floor: the window's shadow shifted along d, away from its edges
+    v = sol.voxels
+    shift = d[[0, 2]] / -d[1] * y
+    cx, cz = v.centroid[:, 0] - shift[0], v.centroid[:, 2] - shift[1]
+    patch = (v.normal[:, 1] > 0.99) & (v.centroid[:, 1] < 0.05) & (np.abs(cx - 0.5) < 0.06) & \
+        (np.abs(cz - 0.5) < 0.06) & (v.area > 0.99 * v.cell_size ** 2)
+    assert patch.sum() >= 9
+    h1 = sol.irradiance[patch, 0]
+    assert abs(h1.mean() / (e * cos) - 1) < 0.01 and np.abs(h1 / (e * cos) - 1).max() < 0.05  # measured 3e-3
+
+
 def test_cornell_voxel_view_agrees_with_path_tracer(cornell):
     """The direct voxel view of the default solution against the reference
     path tracer, same camera (linear radiance). Measured at 512 px / 256 spp:
