@@ -56,7 +56,6 @@ EMPTY = -1
 CUT_REACH = 3.0   # cells around a cut voxel's cell where its cutting surface is taken to stand
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
 AHEAD_HEAD = 16   # ... its first waiting record
-RING = 64         # > AHEAD_TABLE, a power of two
 
 
 @njit(cache=True, inline="always")
@@ -221,8 +220,8 @@ def _find(idx, dense, tab, mask, stamp):
 
 
 @njit(cache=True)
-def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, A, B, C, mu, mu2, ux, uy, uz, weight,
-           forward, tau, kappa, dense, pmin, P, qmin, tab, mask, stamp, rec, recf, free, buf, bkey):
+def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, rad, gat, quad, ux, uy, uz, weight, forward, tau, kappa,
+           dense, tab, mask, stamp, rec, recf, free, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over the
     voxels in this axis's order (index = position in the order; lengths in
     cells). gcell (ng, 3) int32 the cells, starts (ng + 1,) their voxels.
@@ -231,7 +230,6 @@ def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, A, B, C,
     needs neither the rows' strides (registers) nor wrap-around code for
     negative indices; together, half the instructions of this loop."""
     pos2 = pos.reshape((-1, 8))
-    gcell2 = gcell.reshape((-1, 3))
     ng = starts.shape[0] - 1
     if not forward:
         ux, uy, uz = -ux, -uy, -uz
@@ -241,31 +239,17 @@ def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, A, B, C,
     kappa_h = kappa
     nfree = 0
     ntop = 0
-    ring = np.empty(RING, np.int64)  # line ids of the next cells
-    xa = np.int64(-(2 ** 62))
-    pa = qa = np.int64(0)
-    ck = np.uint64(k)
-    ck1 = np.uint64((k + 1) % 3)
-    ck2 = np.uint64((k + 2) % 3)
     U1 = np.uint64(1)
     U2 = np.uint64(2)
     for i0 in range(-AHEAD_TABLE, ng):
-        # the prefetch pipeline: line id and table entry, head record
+        # the prefetch pipeline: table entry, head record
         ia = i0 + AHEAD_TABLE
         if ia < ng:
-            r = np.uint64(3 * (g0 + gstep * ia))
-            X = np.int64(gcell[r + ck])
-            if X != xa:
-                # floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one division per slab of X
-                xa = X
-                pa = (C * X - mu) // A
-                qa = (B * X - mu2) // A
-            idx = (qa - np.int64(gcell[r + ck1]) - qmin) * P + (pa - np.int64(gcell[r + ck2]) - pmin)
-            ring[np.uint64(ia & (RING - 1))] = idx
+            idx = np.int64(lid[np.uint64(g0 + gstep * ia)])
             prefetch(tab, 4 * (idx if dense else _hash(idx, mask)))
         ib = i0 + AHEAD_HEAD
         if 0 <= ib < ng:
-            rb = _find(ring[np.uint64(ib & (RING - 1))], dense, tab, mask, stamp)
+            rb = _find(np.int64(lid[np.uint64(g0 + gstep * ib)]), dense, tab, mask, stamp)
             if rb != EMPTY:
                 hb = tab[np.uint64(rb + 1)]
                 if hb != EMPTY:
@@ -273,7 +257,7 @@ def _sweep(starts, gcell, order, pos, pos_all, cutp, rad, gat, quad, k, A, B, C,
         if i0 < 0:
             continue
         g = g0 + gstep * i0
-        tr = _claim(ring[np.uint64(i0 & (RING - 1))], dense, tab, mask, stamp)
+        tr = _claim(np.int64(lid[np.uint64(g)]), dense, tab, mask, stamp)
         head = np.int64(tab[tr + U1])
         last = np.int64(tab[tr + U2])
         a, b = np.int64(starts[np.uint64(g)]), np.int64(starts[np.uint64(g + 1)])
@@ -397,8 +381,29 @@ def _scatter_add(order, quad_k, quad):
 
 
 @njit(cache=True, parallel=True)
+def _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid):
+    """Line id of every cell for one family (shared by its two sweeps):
+    (floor((C X - A Z - mu) / A) - pmin) + P (floor((B X - A Y - mu') / A) - qmin),
+    with floor((C X - A Z - mu) / A) = floor((C X - mu) / A) - Z: one
+    division per slab of X."""
+    k1, k2 = (k + 1) % 3, (k + 2) % 3
+    ng = gcell.shape[0]
+    chunk = 4096
+    for c in prange((ng + chunk - 1) // chunk):
+        xa = np.int64(-(2 ** 62))
+        pa = qa = np.int64(0)
+        for g in range(c * chunk, min(ng, (c + 1) * chunk)):
+            X = np.int64(gcell[g, k])
+            if X != xa:
+                xa = X
+                pa = (C * X - mu) // A
+                qa = (B * X - mu2) // A
+            lid[g] = (qa - np.int64(gcell[g, k1]) - qmin) * P + (pa - np.int64(gcell[g, k2]) - pmin)
+
+
+@njit(cache=True, parallel=True)
 def _families(fams, st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, cell_lo, cell_hi, vectors, units, weights,
-              offsets, k, tau, kappa, size, tabs, recs, frees, bufs, bkeys, stamp0):
+              offsets, k, tau, kappa, size, tabs, recs, frees, bufs, bkeys, lid, stamp0):
     k1, k2 = (k + 1) % 3, (k + 2) % 3
     for fi in range(fams.shape[0]):
         f = fams[fi]
@@ -411,10 +416,11 @@ def _families(fams, st, gcell, order, pos, pos_all, cutp, rad, gat, quad_k, cell
         qmax = (max(B * x0, B * x1) - A * y0 - mu2) // A
         P = pmax - pmin + 1
         dense = P * (qmax - qmin + 1) <= size
+        _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid)
         for sw in prange(2):
-            _sweep(st, gcell.reshape(-1), order, pos.reshape(-1), pos_all, cutp, rad.reshape(-1), gat.reshape(-1),
-                   quad_k, k, A, B, C, mu, mu2, units[f, 0], units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa,
-                   dense, pmin, P, qmin, tabs[sw].reshape(-1), size - 1, stamp0 + fi, recs[sw].reshape(-1),
+            _sweep(st, lid, gcell, order, pos.reshape(-1), pos_all, cutp, rad.reshape(-1), gat.reshape(-1), quad_k,
+                   units[f, 0], units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa, dense,
+                   tabs[sw].reshape(-1), size - 1, stamp0 + fi, recs[sw].reshape(-1),
                    recs[sw].view(np.float32).reshape(-1), frees[sw], bufs[sw], bkeys[sw])
 
 
@@ -451,6 +457,7 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
     frees = np.empty((2, n), np.int32)
     bufs = np.empty((2, max_group), np.int64)
     bkeys = np.empty((2, max_group))
+    lid = np.empty(ng, np.int64)  # the cells' line ids, per family
     stamp = 0
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
@@ -458,7 +465,8 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
             continue
         _permute(orders[k], starts[k], cell, pos_all, radiosity, pos, gcell, rad)
         _families(fams, starts[k], gcell, orders[k], pos, pos_all, cutp, rad, gathered, quad_k, cell_lo, cell_hi,
-                  vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees, bufs, bkeys, stamp)
+                  vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees, bufs, bkeys, lid,
+                  stamp)
         stamp += len(fams)
         _scatter_add(orders[k], quad_k, quad)
     return gathered, quad
