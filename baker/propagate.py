@@ -114,7 +114,7 @@ class LineSweeper:
         ones are touched, a few per cent of the voxels)."""
         per_voxel = 32 + 24 + 8 + 24 + 8  # axis copy, its radiosity, its S sums, the outputs
         return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
-            12 * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel
+            (12 + 8) * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel  # cells, line ids
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
