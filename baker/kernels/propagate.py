@@ -219,6 +219,18 @@ def _find(idx, dense, tab, mask, stamp):
     return EMPTY
 
 
+@njit(cache=True, inline="always")
+def _unlink(j, nj, prev, head, rec, free, nfree):
+    """Removes waiting record j (followed by nj) from its list, after prev
+    (the head if none), and frees it: returns the list's head."""
+    if prev == EMPTY:
+        head = nj
+    else:
+        rec[np.uint64(8 * prev + 7)] = nj
+    free[np.uint64(nfree)] = j
+    return head
+
+
 @njit(cache=True)
 def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, rad, gat, quad, ux, uy, uz, weight, forward, tau, kappa,
            dense, tab, mask, stamp, rec, recf, free, buf, bkey):
@@ -299,11 +311,7 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, rad, gat, quad, ux, u
                             gat[xr] += rad[y3] * w
                             gat[xr + U1] += rad[y3 + U1] * w
                             gat[xr + U2] += rad[y3 + U2] * w
-                        if prev == EMPTY:
-                            head = nj
-                        else:
-                            rec[np.uint64(8 * prev + 7)] = nj
-                        free[np.uint64(nfree)] = j
+                        head = _unlink(j, nj, prev, head, rec, free, nfree)
                         nfree += 1
                     else:
                         prev = j
@@ -328,11 +336,7 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, rad, gat, quad, ux, u
                                 (cy2 - float(recf[jr + U2])) * float(recf[jr + np.uint64(5)])
                             blocked = not (ex < 0.0 and d >= -kappa_h)
                     if blocked:
-                        if prev == EMPTY:
-                            head = nj
-                        else:
-                            rec[np.uint64(8 * prev + 7)] = nj
-                        free[np.uint64(nfree)] = j
+                        head = _unlink(j, nj, prev, head, rec, free, nfree)
                         nfree += 1
                     else:
                         prev = j
