@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .directions import DirectionSet
+from .errors import BudgetError
 from .kernels.propagate import propagate_families
 from .kernels.rng import rand01
 
@@ -34,7 +35,7 @@ class LineSweeper:
         pos[:, 3:6] = voxels.normal
         cut = np.nonzero(voxels.cut_sign != 0)[0]
         if len(cut) >= 2 ** 24:
-            raise ValueError("too many cut voxels for the propagation's float32 index")
+            raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of 2^24; lower the resolution")
         pos[cut, 6] = voxels.cut_sign[cut]
         pos[cut, 7] = np.arange(len(cut))
         # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells
@@ -101,8 +102,8 @@ class LineSweeper:
         q = (b * ext[k] + a * ext[(k + 1) % 3]) // a + 2
         need = int((p * q).max())
         if need >= 2 ** 31:  # line ids are int32 keys in the table
-            raise ValueError(f"the voxel grid ({(self.cell_hi - self.cell_lo + 1).tolist()} cells) is too large "
-                             "for the propagation's line table")
+            raise BudgetError(f"the voxel grid ({(self.cell_hi - self.cell_lo + 1).tolist()} cells) is too large "
+                              "for the propagation's line table (2^31 lines); lower the resolution")
         if need <= self.table_size:
             return need, False
         return self.table_size, True
