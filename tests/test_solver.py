@@ -237,7 +237,7 @@ def test_punctual_light_photons(tmp_path):
     assert np.abs(h1 / (2.0 * cos) - 1).max() < 0.1
 
 
-def test_sun_through_a_window_is_guided_and_unbiased(tmp_path):
+def test_sun_through_a_window_is_guided_and_unbiased(tmp_path, monkeypatch):
     """A closed room (one-sided, inward) with a window in its roof, under a
     sun of irradiance E: the power that enters, E A cos(theta), all lands
     inside. Guided sun photons (a pilot pass learns where they land) must
@@ -270,12 +270,8 @@ def test_sun_through_a_window_is_guided_and_unbiased(tmp_path):
     deposited = sol.photon_power[:, 0].sum()
     assert abs(deposited / entering - 1) < 0.01  # measured 3e-4
     landed_guided = sol.info["photons_landed"]
-    floor_before = photons.GUIDE_FLOOR
-    try:
-        photons.GUIDE_FLOOR = 1.0  # no guiding: even over the disc
-        plain = solve(scene, config)
-    finally:
-        photons.GUIDE_FLOOR = floor_before
+    monkeypatch.setattr(photons, "GUIDE_FLOOR", 1.0)  # no guiding: even over the disc
+    plain = solve(scene, config)
     assert abs(plain.photon_power[:, 0].sum() / entering - 1) < 0.05
     assert landed_guided > 5 * plain.info["photons_landed"]  # measured 51x
     # the sunlit patch on the floor: the window's shadow shifted along d, away from its edges
