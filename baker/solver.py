@@ -101,11 +101,13 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
     h1 = first_bounce_irradiance(vox, dep)
     lum = dep.sum(axis=1)
     centroid = np.where(lum[:, None] > 0, pcen / np.where(lum > 0, lum, 1.0)[:, None], vox.centroid)
-    total = h1.copy()
+    del pcen, lum  # (n, 3) arrays the propagation does not need: less peak memory
     current = vox.albedo * h1
+    history = [h1] if keep_bounces else None
+    total = h1.copy() if keep_bounces else h1  # H accumulates in place
+    del h1
     p1 = float((current * area).sum())
     bounce_power = [p1]
-    history = [h1] if keep_bounces else None
     radii_used = []
     rays = 0
     stop = "no light reached a surface" if p1 <= 0 else f"bounce cap ({config.max_bounces})"
@@ -126,7 +128,7 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
                 rays += n * dirs.n_directions
                 radii_used.append(r)
                 total += hk
-                current = vox.albedo * hk
+                np.multiply(vox.albedo, hk, out=current)  # in place: no second (n, 3) array
                 pk = float((current * area).sum())
                 bounce_power.append(pk)
                 if keep_bounces:
