@@ -24,6 +24,7 @@ from common import ROOT, emit
 from baker.config import solver_config
 from baker.directions import direction_set
 from baker.propagate import LineSweeper
+from baker.solver import solve
 from baker.scene import load_scene
 from baker.stats import release_freed_memory
 from baker.voxels import voxelize
@@ -99,7 +100,7 @@ def main():
         d = direction_set(r)
         hk = sw.irradiance(cur, d, sw.offsets(d, 0, k))
         total += hk
-        cur = v.albedo * hk
+        np.multiply(v.albedo, hk, out=cur)  # as solve() does
     peak = rss_bytes("VmHWM") if reset_ok else base
     prop_per_voxel = (peak - base) / len(v)
     per_voxel = (peak - rss0) / len(v)
@@ -137,6 +138,22 @@ def main():
            f"{prop_per_voxel:.0f}" if reset_ok else "n/a", f"{per_voxel:.0f}" if reset_ok else "n/a"]],
          ["scene", "voxels", "voxel set B/voxel", "propagation arrays B/voxel (computed)",
           "propagation peak B/voxel (measured)", "peak with voxel set and solver arrays B/voxel"])
+
+    # the whole solve() as a user runs it: voxel set, photons, solver arrays, two propagated bounces
+    del sw, swd, vd, cur, total, hk
+    release_freed_memory()
+    reset_ok = reset_peak()
+    base = rss_bytes()
+    t0 = time.perf_counter()
+    sol = solve(cornell, solver_config("default", resolution=big_res, radius=8, max_bounces=3))
+    t_solve = time.perf_counter() - t0
+    peak = rss_bytes("VmHWM") if reset_ok else base
+    ns_ = len(sol.voxels)
+    emit(args, "solve() peak memory (Cornell box, 1M photons, bounces 1-3: r = 8 then 6)",
+         [[f"cornell {big_res} cells", ns_, f"{t_solve:.1f}", f"{(peak - base) / 2**20:.0f}",
+           f"{(peak - base) / ns_:.0f}" if reset_ok else "n/a"]],
+         ["scene", "voxels", "seconds", "peak over the process before solve() MiB", "B/voxel"])
+    del sol
 
     walk = load_scene(os.path.join(ROOT, "scenes", "walkthrough.glb"))
     res = 128 if args.quick else 512
