@@ -230,7 +230,7 @@ def _disc_cells(g):
     return (near <= 1.0).reshape(-1)
 
 
-def _guides(scene, surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps):
+def _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps):
     """Per light, the cumulative cell table directional photons are drawn
     from. A pilot pass (directional lights only, uniform over the disc)
     finds where photons reach a voxel; each directional light then sends
@@ -248,7 +248,7 @@ def _guides(scene, surfaces, bvh, voxels, kinds, refs, powers, center, radius, n
     m = max(4096, int(n * PILOT_SHARE))
     cdf = np.cumsum(powers[sun].sum(axis=1))
     prot = (rot + 0.5) % 1.0  # another rotation of the same sequence: the pilot's own photons
-    pts, sn, pw, ok, tri, back, cell, which = shoot(bvh.arrays, surfaces.arrays, cdf, kinds[sun], refs[sun], powers[sun],
+    pts, _, pw, ok, tri, back, cell, which = shoot(bvh.arrays, surfaces.arrays, cdf, kinds[sun], refs[sun], powers[sun],
                                              int(m), prot, eps, center, radius, uniform, np.zeros(len(sun), np.int32))
     vi = find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.piece_plane, voxels.piece_sign,
                      voxels.side_start, voxels.back_side, voxels.origin, voxels.cell_size, voxels.dims)
@@ -277,7 +277,7 @@ def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0):
     cdf = np.cumsum(powers.sum(axis=1))
     rot = np.array([rand01(seed, 0x5EED, d) for d in range(8)])
     eps = 1e-7 * float(np.abs(scene.vertices).max() or 1.0)
-    guide, rows = _guides(scene, surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps)
+    guide, rows = _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps)
     pts, sn, pw, ok, tri, back, _, _ = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, int(n), rot, eps,
                                           center, radius, guide, rows)
     vi = find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.piece_plane, voxels.piece_sign,
