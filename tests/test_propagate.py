@@ -5,7 +5,8 @@ import pytest
 from baker.directions import direction_set
 from baker.propagate import LineSweeper
 from baker.voxels import voxelize
-from scenes.generate import cornell_box, furnace_box, furnace_obstacles, two_rooms
+from baker.gltf_write import GltfBuilder
+from scenes.generate import box, cornell_box, furnace_box, furnace_obstacles, quad, two_rooms
 from tests.naive import propagate_lines
 
 
@@ -34,6 +35,42 @@ def test_kernel_matches_slow_reference(make_scene, name, builder, res):
     np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
     assert (g > 0).any()
+
+
+def terraces(res, tilt=0.02):
+    """A closed box with a floor of strips on one slightly tilted plane
+    normal, stepping up and down along x by fractions of a cell (some within
+    tau, some beyond): lines along x lie in the strips, all their voxels
+    wait on the line at once, and a step beyond tau must block them."""
+    h = 1.0 / res
+    n = np.array([tilt, 1.0, 0.0])
+    b = GltfBuilder()
+    m = b.material("grey", (0.6,) * 3)
+    b.mesh("shell", *box((0, 0, 0), (1, 1, 1), inward=True), m)
+    steps = [0.0, 0.05, -0.3, 0.6, 0.02, -0.08, 0.45]  # cells, step after step
+    xs = np.linspace(0.0, 1.0, len(steps) + 1)
+    y = 0.5 * h + 3 * h
+    for i, step in enumerate(steps):
+        y += step * h
+        x0, x1 = xs[i], xs[i + 1]
+        # the strip lies on the plane n . p = n . (x0, y, 0): the same normal everywhere
+        y0, y1 = y - tilt * (x0 - xs[0]), y - tilt * (x1 - xs[0])
+        b.mesh(f"strip{i}", *quad((x0, y0, 0.2), (x1, y1, 0.2), (x1, y1, 0.8), (x0, y0, 0.8), facing=n), m)
+    return b
+
+
+@pytest.mark.parametrize("res", [16, 24])
+def test_lines_lying_in_a_surface_match_reference(make_scene, res):
+    """The waiting list's bound (one surface's run along a line tested in
+    O(1)) gives what testing every waiting voxel gives."""
+    v = voxelize(make_scene(terraces(res), f"prop_terraces_{res}"), res)
+    rng = np.random.default_rng(4)
+    radiosity = rng.random((len(v), 3))
+    dirs = direction_set(2)
+    sw = LineSweeper(v)
+    (g, s), (g_ref, s_ref) = gather_both(v, radiosity, dirs, sw.offsets(dirs, 1, 2), sw)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
 
 
 def test_hashed_line_table_equals_dense(make_scene):
