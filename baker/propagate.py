@@ -113,9 +113,9 @@ class LineSweeper:
         """Working memory of a bounce beyond the voxel arrays (the line
         tables at their largest; waiting records not counted: only the live
         ones are touched, a few per cent of the voxels)."""
-        per_voxel = 32 + 4 * HIT_BATCH + 8 + 24 + 8  # axis copy, hits, its S sums, the outputs
+        per_voxel = 32 + 4 * HIT_BATCH + 2 * 8 + 24 + 8  # axis copy, hits, two lanes' S sums, the outputs
         return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
-            (12 + 4) * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel  # cells, line ids
+            (12 + 2 * 4) * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel  # cells, line ids
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
