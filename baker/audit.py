@@ -18,7 +18,7 @@ import numpy as np
 
 from .directions import DirectionSet, direction_set
 from .kernels.rng import rand01
-from .propagate import LineSweeper
+from .propagate import TAU, LineSweeper
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,10 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
         pick = cand[(np.array([rand01(seed, 1000 + f, i) for i in range(min(samples, len(cand)))]) *
                      len(cand)).astype(np.int64)]
         u = dirs.unit[f][None, :] * sgn[pick, None]
-        o = voxels.centroid[pick] + voxels.normal[pick] * eps
+        # the ray starts tau in front of the centroid: on a curved surface the centroid of a
+        # cell's piece lies behind the surface (by the sagitta), and a ray from there would
+        # meet the surface's own back at once (the discrete rule allows the same tau)
+        o = voxels.centroid[pick] + voxels.normal[pick] * max(eps, TAU * h)
         t, tri, _, _ = bvh.closest(o, u)
         corners = surfaces.arrays[4]
         back = np.zeros(len(pick), bool)

@@ -27,7 +27,8 @@ class LineSweeper:
         self.cell = cell
         # what the sweep reads per voxel, lengths in cells (pos: see kernels/propagate.py):
         # the centroid in grid coordinates and the normal, float32 (1e-7 of the grid's
-        # extent: tau is 0.1 cell), the side of a cutting plane and that plane's row
+        # extent: tau is 0.1 cell), the side of a cutting plane and that plane's row (not
+        # cut: 1 for a face of a two-sided sheet, else 0)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
         pos = np.zeros((n, 8), np.float32)
@@ -36,12 +37,16 @@ class LineSweeper:
         cut = np.nonzero(voxels.cut_sign != 0)[0]
         if len(cut) >= 2 ** 24:
             raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of 2^24; lower the resolution")
+        sheet = np.asarray(voxels.two_sided, bool)
+        pos[:, 7] = sheet
         pos[cut, 6] = voxels.cut_sign[cut]
         pos[cut, 7] = np.arange(len(cut))
-        # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells
+        # the cutting planes in absolute grid coordinates (n . g = offset), the cut voxels'
+        # cells, and whether they are a sheet's face
         plane = voxels.cut_plane[cut].astype(np.float64)
         plane[:, 3] += (plane[:, :3] * cell[cut]).sum(axis=1)
-        self.cutp = np.ascontiguousarray(np.concatenate([plane, cell[cut].astype(np.float64)], axis=1))
+        self.cutp = np.ascontiguousarray(np.concatenate([plane, cell[cut].astype(np.float64),
+                                                         sheet[cut, None].astype(np.float64)], axis=1))
         self._cut_rows = cut
         self.pos = pos
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
@@ -80,6 +85,13 @@ class LineSweeper:
         out = np.zeros((self.n, 5))
         out[self._cut_rows, :4] = self.cutp[:, :4]
         out[:, 4] = self.pos[:, 6]
+        return out
+
+    @property
+    def sheet(self) -> np.ndarray:
+        """(n,) bool: faces of two-sided sheets, as the kernel sees them."""
+        out = self.pos[:, 7] != 0
+        out[self._cut_rows] = self.cutp[:, 7] != 0
         return out
 
     @property

@@ -54,6 +54,8 @@ class Voxels:
     cut_plane: np.ndarray     # (n, 4) float32 plane of the surface that cut the voxel's pieces: normal, and offset
     #                           in grid units relative to the voxel's cell (n . (g - cell) = offset)
     cut_sign: np.ndarray      # (n,) int8 +1 / -1: the voxel lies in front of / behind it; 0: not cut
+    two_sided: np.ndarray     # (n,) bool: its largest piece is double-sided (a sheet: its back is the voxel
+    #                           of the other facing in the cell, at the same centroid)
     piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
     piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
     piece_plane: np.ndarray   # (m, 4) float32 plane that cut a piece in two (as cut_plane, relative to its cell)
@@ -67,7 +69,7 @@ class Voxels:
     @property
     def nbytes(self) -> int:
         return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
-                                                     "albedo", "emission", "material", "cut_plane", "cut_sign", "piece_key",
+                                                     "albedo", "emission", "material", "cut_plane", "cut_sign", "two_sided", "piece_key",
                                                      "piece_voxel", "piece_plane", "piece_sign", "side_start",
                                                      "back_side"))
 
@@ -250,6 +252,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
                   facing=facing[order][starts], key=key[order][starts], area=area * h * h,
                   normal=nrm, centroid=origin + cen / area[:, None] * h, albedo=alb / area[:, None],
                   emission=em / area[:, None], material=material, cut_plane=cut_plane, cut_sign=cut_sign,
+                  two_sided=scene.double_sided[material].astype(bool),
                   piece_key=key_sorted[by_side],
                   piece_voxel=vox_of[by_side].astype(np.int64),
                   piece_plane=_relative_plane(p_plane[order][by_side], p_cell[order][by_side]),

@@ -327,11 +327,12 @@ def thin_wall(albedo=0.7, light_radiance=10.0, thickness=0.004):
     return b
 
 
-def closed_box(albedo=0.7, light_radiance=10.0):
+def closed_box(albedo=0.7, light_radiance=10.0, double_sided=False):
     """A room lit from below its ceiling; inside it a closed box (outward,
-    one-sided) holding an object: the object must stay exactly black."""
+    one-sided, or every surface double-sided) holding an object: the object
+    and the box's inside must stay exactly black."""
     b = GltfBuilder()
-    w = b.material("wall", (albedo,) * 3)
+    w = b.material("wall", (albedo,) * 3, double_sided=double_sided)
     light = b.material("light", (0.8,) * 3, emission=(light_radiance,) * 3)
     b.mesh("room", *box((0, 0, 0), (2, 2, 2), inward=True), w)
     b.mesh("closed_box", *box((0.6, 0.0, 0.6), (1.4, 0.8, 1.4)), w)

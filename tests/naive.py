@@ -48,16 +48,19 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
-                    kappa=1.0, trace=None, cut=None):
+                    kappa=1.0, trace=None, cut=None, sheet=None):
     """Plain-Python linear propagation with the visibility rule of METHOD.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
     +1 before -1) and runs the waiting-list rule along s and -s.
     cut (n, 5): the plane and side of a surface that cut a voxel (cells;
-    the kernel's CUT_REACH = 3 cells). Returns (gathered (n, 3), S (n,));
+    the kernel's CUT_REACH = 3 cells). sheet (n,) bool: a face of a
+    two-sided sheet (ties -1 first; never sees its sheet's back). Returns (gathered (n, 3), S (n,));
     with trace=x, also the list of (family, sign, source voxel) voxel x
     gathered from."""
     n = len(cell)
+    if sheet is None:
+        sheet = np.zeros(n, bool)
     gathered = np.zeros((n, 3))
     quad = np.zeros(n)
     sources = []
@@ -75,13 +78,16 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
             for members in lines.values():
                 def order_key(v):
                     o = float(normal[v] @ u)
-                    return (sign * int(cell[v][k]), float(centroid[v] @ u), 0 if o > 0 else 1)
+                    # ties: +1 first (a box on a floor), but a sheet's faces -1 first (back to back)
+                    return (sign * int(cell[v][k]), float(centroid[v] @ u), 1 if (o > 0) == bool(sheet[v]) else 0)
                 def cut_between(a, b):
                     sign = cut[a][4]
                     if sign == 0:
                         return False
                     n_, d_ = cut[a][:3], cut[a][3]
                     sa, sb = centroid[a] @ n_ - d_, centroid[b] @ n_ - d_
+                    if abs(sb) <= tau * h:  # b on that surface: the side it faces
+                        return float(normal[b] @ n_) * sign < -0.5
                     if sb * sign >= -tau * h or sa == sb:
                         return False
                     if cut[b][4] != 0:
@@ -108,7 +114,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     if o < 0:
                         keep = []
                         for x in waiting:
-                            if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h:
+                            d = (centroid[x] - centroid[y]) @ normal[y]
+                            backs = sheet[x] and sheet[y] and float(normal[x] @ normal[y]) <= -0.999 and d <= tau * h
+                            if d >= (0.0 if sheet[y] else -tau * h) and not backs:
                                 between = any(hidden_by(q, x, y) for q in members
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
                                 if cut is not None:

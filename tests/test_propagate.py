@@ -6,7 +6,7 @@ from baker.directions import direction_set
 from baker.propagate import LineSweeper
 from baker.voxels import voxelize
 from baker.gltf_write import GltfBuilder
-from scenes.generate import box, cornell_box, furnace_box, furnace_obstacles, quad, two_rooms
+from scenes.generate import box, closed_box, cornell_box, furnace_box, furnace_obstacles, quad, thin_wall, two_rooms
 from tests.naive import propagate_lines
 
 
@@ -15,7 +15,7 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     fast = sw.gather(radiosity, dirs, offsets)
     # the kernel works in cells: the same centroids (grid coordinates) for the reference
     slow = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(np.float64), radiosity, dirs.vectors, dirs.axis, dirs.unit,
-                           dirs.solid_angle / np.pi, offsets, 1.0, cut=sw.cut)
+                           dirs.solid_angle / np.pi, offsets, 1.0, cut=sw.cut, sheet=sw.sheet)
     return fast, slow
 
 
@@ -23,6 +23,8 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     ("obstacles", furnace_obstacles, 8),
     ("rooms_midcell", lambda: two_rooms(wall_x=1.0 + 0.5 * 2 / 10), 10),
     ("cornell", cornell_box, 8),
+    ("thin_wall", thin_wall, 10),  # a double-sided sheet: its faces back to back
+    ("closed_box_double_sided", lambda: closed_box(double_sided=True), 10),
 ])
 def test_kernel_matches_slow_reference(make_scene, name, builder, res):
     scene = make_scene(builder(), f"prop_{name}")

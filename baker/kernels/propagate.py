@@ -33,7 +33,8 @@ million voxels, where the waiting voxels' data has left the cache by the
 time their line meets a surface):
 - pos (n, 8) float32 per voxel in the axis's order: centroid (grid
   coordinates), normal, the side of a cutting plane (0: not cut) and the
-  index of that plane in cutp (only read for cut voxels);
+  index of that plane in cutp (not cut: 1 for a face of a two-sided
+  sheet);
 - the line table (size, 4) int32 per line: stamp (the family that last
   used it: no clearing between families), head of the waiting list, last
   voxel added, hashed key;
@@ -150,6 +151,10 @@ def _cut_between(pa, a, pb, b, cutp, tau_h):
     b0, b1, b2 = float(pb[b, 0]), float(pb[b, 1]), float(pb[b, 2])
     sa = a0 * nx + a1 * ny + a2 * nz - d
     sb = b0 * nx + b1 * ny + b2 * nz - d
+    if abs(sb) <= tau_h:
+        # b lies on that surface (a face of it, or of a sheet along it): the side it faces
+        facing = float(pb[b, 3]) * nx + float(pb[b, 4]) * ny + float(pb[b, 5]) * nz
+        return facing * sign < -0.5
     if sb * sign >= -tau_h or sa == sb:
         return False
     if pb[b, 6] != 0.0:
@@ -167,15 +172,51 @@ def _cut_between(pa, a, pb, b, cutp, tau_h):
 
 
 @njit(cache=True)
-def _order_cell(a, m, pos, ux, uy, uz, buf, bkey):
-    """The m voxels of a cell from a, in order along the sweep (ties: +1
-    before -1), into buf as v (n.s > 0) or -v-1."""
+def _sheet(pos, v, cutp):
+    """Is voxel v one face of a two-sided sheet (a double-sided surface: its
+    back is the voxel of the other facing, at the same centroid)?"""
+    if pos[v, 6] == 0.0:
+        return pos[v, 7] != 0.0
+    return cutp[np.int64(pos[v, 7]), 7] != 0.0
+
+
+@njit(cache=True)
+def _back_to_back(rec, recf, jr, pos_all, pos, y, cutp):
+    """Is y, facing the waiting voxel x (record at jr) within tau of x's
+    plane, the back of x's own sheet (both faces of two-sided surfaces, with
+    opposite normals)? Then x does not see it: a digital line a cell thick
+    can meet the sheet's other face in the next cell before it leaves the
+    sheet's plane."""
+    dot = float(recf[jr + np.uint64(3)]) * float(pos[y, 3]) + float(recf[jr + np.uint64(4)]) * float(pos[y, 4]) + \
+        float(recf[jr + np.uint64(5)]) * float(pos[y, 5])
+    if dot > -0.999:
+        return False
+    xe = np.int64(rec[jr + np.uint64(6)])
+    x = xe if xe >= 0 else -xe - 1
+    return _sheet(pos, y, cutp) and _sheet(pos_all, x, cutp)
+
+
+@njit(cache=True)
+def _order_cell(a, m, pos, ux, uy, uz, buf, bkey, cutp):
+    """The m voxels of a cell from a, in order along the sweep, into buf as
+    v (n.s > 0) or -v-1. Ties (the same centroid): +1 before -1, a box
+    resting on a floor (the floor's ray meets the box's bottom); but the two
+    faces of a sheet come -1 first, back to back (the ray from behind meets
+    the face on its side, the face on the other side sends its ray on)."""
     for i in range(m):
         v = a + i
         t = float(pos[v, 0]) * ux + float(pos[v, 1]) * uy + float(pos[v, 2]) * uz
         o = float(pos[v, 3]) * ux + float(pos[v, 4]) * uy + float(pos[v, 5]) * uz
+        late = (o > 0) == _sheet(pos, v, cutp)  # on a tie, after the others
         j = i
-        while j > 0 and (bkey[j - 1] > t or (bkey[j - 1] == t and buf[j - 1] < 0 and o > 0)):
+        while j > 0:
+            if bkey[j - 1] < t:
+                break
+            if bkey[j - 1] == t:
+                e = buf[j - 1]
+                q = e if e >= 0 else -e - 1
+                if late or (e >= 0) != _sheet(pos, q, cutp):
+                    break
             bkey[j] = bkey[j - 1]
             buf[j] = buf[j - 1]
             j -= 1
@@ -299,7 +340,7 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
         # the cell's voxels in order along the sweep; ties: +1 before -1
         m = b - a
         if m > 1:
-            _order_cell(a, m, pos2, ux, uy, uz, buf, bkey)
+            _order_cell(a, m, pos2, ux, uy, uz, buf, bkey, cutp)
         for i in range(m):
             if m == 1:
                 y = a
@@ -316,13 +357,24 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
             prev = EMPTY
             j = head
             if o < 0.0:
-                # y faces the rays: waiting voxels in front of (or near) its plane see it
+                # y faces the rays: waiting voxels in front of (or near) its plane see it; in
+                # front of a sheet's face strictly (within tau behind it, its other face is the
+                # one facing them)
+                dmin = -tau_h
+                if j != EMPTY:
+                    if not ycut:
+                        if pos[yr + np.uint64(7)] != 0.0:
+                            dmin = 0.0
+                    elif _sheet(pos2, y, cutp):
+                        dmin = 0.0
                 while j != EMPTY:
                     jr = np.uint64(REC * j)
                     nj = np.int64(rec[jr + np.uint64(7)])
                     d = (float(recf[jr]) - cy0) * ny0 + (float(recf[jr + U1]) - cy1) * ny1 + \
                         (float(recf[jr + U2]) - cy2) * ny2
-                    if d >= -tau_h:
+                    # x sees y: in front of its plane, and y not the back of x's sheet
+                    if d >= dmin and not (dmin == 0.0 and d <= tau_h and
+                                          _back_to_back(rec, recf, jr, pos_all, pos2, y, cutp)):
                         xe = np.int64(rec[jr + np.uint64(6)])
                         x = xe if xe >= 0 else -xe - 1
                         if (m == 1 and xe >= 0 and not ycut) or \
@@ -537,8 +589,9 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
 
     Lengths in cells. pos_all (n, 8) float32 per voxel: centroid in grid
     coordinates, normal, the side of the plane that cut its pieces (0:
-    none) and that plane's row in cutp (m, 7) float64 (normal, offset n.g,
-    the voxel's cell). orders (3, n) int32: voxel order with axis 0, 1, 2
+    none) and that plane's row in cutp (m, 8) float64 (normal, offset n.g,
+    the voxel's cell, 1 for a sheet's face), or when not cut 1 for a face
+    of a two-sided sheet. orders (3, n) int32: voxel order with axis 0, 1, 2
     major; starts (3, ng+1) the cell boundaries in each order; cell (n, 3)
     int32; cell_lo, cell_hi (3,) the cells' bounding box; table_size the
     line table's rows (a power of two when hashed: the dense range of some

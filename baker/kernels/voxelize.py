@@ -253,7 +253,8 @@ def cell_runs(order, key):
 def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
     """For pieces sorted by cell key (order), a signature per piece: bit i
     set when the piece lies in front of (beyond tol, grid units) the plane
-    of the i-th piece of another facing in the same cell. Pieces of one
+    of the i-th piece of another facing in the same cell, not facing back
+    at it (within 25 degrees). Pieces of one
     facing with different signatures are cut apart by another surface
     crossing the cell (a wall standing on two floors) and must not merge
     (METHOD.md section 4, straddling voxels). Cells with more than 63
@@ -270,6 +271,8 @@ def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
                     q = order[j]
                     if facing[q] == facing[p]:
                         continue
+                    if normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2] < -0.9:
+                        continue  # the other face of a two-sided surface (curved: its pieces' planes differ)
                     d = 0.0
                     for c in range(3):
                         d += (centroid[p, c] / area[p] - centroid[q, c] / area[q]) * normal[q, c]
@@ -361,9 +364,9 @@ def _area_centroid(qx, qy, qz, m):
 def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
                     min_part):
     """For each piece: the piece of another facing and another triangle in
-    the same cell whose plane cuts it into two parts of at least min_part
-    cells^2 each (a floor running under a wall), else -1. One cut per piece:
-    the one that leaves the larger smaller part."""
+    the same cell, not facing back at it, whose plane cuts it into two parts
+    of at least min_part cells^2 each (a floor running under a wall), else
+    -1. One cut per piece: the one that leaves the larger smaller part."""
     n = by_cell.shape[0]
     cut = np.full(n, -1, np.int64)
     for r in range(runs.shape[0] - 1):
@@ -378,6 +381,9 @@ def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, cen
                     if facing[q] == facing[p] or piece_tri[q] == piece_tri[p]:
                         continue
                     nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
+                    if nx * normal[p, 0] + ny * normal[p, 1] + nz * normal[p, 2] < -0.9:
+                        continue  # facing back within 25 degrees: the other face of a two-sided surface
+                    #             (a curved one: its triangles' planes differ a little), not a surface across
                     d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
                     lo, hi = np.inf, -np.inf
                     for v in range(m):
