@@ -69,7 +69,8 @@ class Voxels:
     @property
     def nbytes(self) -> int:
         return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
-                                                     "albedo", "emission", "material", "cut_plane", "cut_sign", "two_sided", "piece_key",
+                                                     "albedo", "emission", "material", "cut_plane", "cut_sign",
+                                                     "two_sided", "piece_key",
                                                      "piece_voxel", "piece_plane", "piece_sign", "side_start",
                                                      "back_side"))
 

@@ -107,9 +107,13 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
                     return inside and ((p - centroid[y]) @ normal[y]) * ((centroid[q] - centroid[y]) @ normal[y]) > 0
                 waiting, last = [], None
+                passed = {}  # waiting voxel -> the last voxel parallel to the line it passed, beyond tau of its plane
                 for y in sorted(members, key=order_key):
                     o = float(normal[y] @ u)
                     if o == 0.0:
+                        for x in waiting:
+                            if abs((centroid[x] - centroid[y]) @ normal[y]) > tau * h:
+                                passed[x] = y
                         continue
                     if o < 0:
                         keep = []
@@ -126,6 +130,12 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                         dot = float(cut[x][:3] @ normal[y])
                                         same = abs(dot) > 0.999 and abs(cut[x][3] - dot * (centroid[y] @ normal[y])) < tau * h
                                         between = between or same
+                                if x in passed:  # across the plane of a surface the line ran along
+                                    w = passed[x]
+                                    sx = (centroid[x] - centroid[w]) @ normal[w]
+                                    sy = (centroid[y] - centroid[w]) @ normal[w]
+                                    between = between or (sx > tau * h and sy < -tau * h) or \
+                                        (sx < -tau * h and sy > tau * h)
                                 if not between:
                                     gathered[x] += radiosity[y] * float(normal[x] @ u) * weights[f]
                                     if x == trace:
@@ -142,6 +152,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         waiting = [x for x in waiting if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h
                                    or edge_last or convex(x)]
                         quad[y] += o * weights[f]
+                        passed.pop(y, None)
                         waiting.append(y)
                         last = y
     if trace is not None:

@@ -21,7 +21,12 @@ against every waiting x with d_x = (c_x - c_y).n_y:
     (d_z < 0, (c_y - c_z).n_z < 0, d_z >= -kappa h); then y joins the list.
 y is hidden from x when another voxel q of y's cell has its plane between
 them and the segment x -> y crosses it near that cell, on the side of y's
-plane where q stands (a wall standing mid-cell on a floor).
+plane where q stands (a wall standing mid-cell on a floor), or when x
+passed, on the line, a voxel parallel to the line (a wall the line runs
+along) and y is beyond tau on the other side of its plane.
+Double-sided surfaces are sheets: two voxels, one per face, at the same
+centroid. A face of a sheet is seen from in front only (d_x >= 0), never
+by its sheet's other face; on a tie the face toward the ray comes first.
 A voxel gathers along s or -s, never both, so the sweeps record the voxel
 each ray met in the gathering voxel's own slot (hit, a column per family
 of a batch): two lanes sweep the batch's families in parallel, then a pass
@@ -40,8 +45,9 @@ time their line meets a surface):
   voxel added, hashed key;
 - waiting records (n, REC) int32 from a free list, so the live ones stay
   few and close together: centroid and normal (float32 bits), the voxel's
-  index in voxel order (-v-1 when cut), the next record, and a lower
-  bound of (c_x - c).n over the voxels waiting at and after it (float32).
+  index in voxel order (-v-1 when cut), the next record, a lower bound of
+  (c_x - c).n over the voxels waiting at and after it (float32), and the
+  last voxel parallel to the line it passed (-1: none).
   A line lying in a surface meets the surface's voxels one after another,
   all waiting, each with the same normal: testing each new one against the
   whole list made such families cost O(L^2) per line (7x a usual family
@@ -74,7 +80,7 @@ AHEAD_HEAD = 16   # ... its first waiting record
 HIT_BATCH = 4     # families whose hits are collected in one pass
 RING = 32         # hits a sweep keeps before writing them
 AHEAD_COLLECT = 24  # voxels ahead: the collecting pass prefetches the radiosity their rays met
-REC = 9           # int32 per waiting record
+REC = 10          # int32 per waiting record
 BOUND_SLACK = 1e-6  # rounding room of the waiting lists' bounds (float32), cells and relative
 
 
@@ -178,6 +184,37 @@ def _sheet(pos, v, cutp):
     if pos[v, 6] == 0.0:
         return pos[v, 7] != 0.0
     return cutp[np.int64(pos[v, 7]), 7] != 0.0
+
+
+@njit(cache=True)
+def _passed(w, pos, j, rec, recf, tau_h):
+    """The line passes voxel w, parallel to it: every waiting voxel (list
+    from record j) beyond tau of w's plane remembers w (the last such)."""
+    w0, w1, w2 = float(pos[w, 0]), float(pos[w, 1]), float(pos[w, 2])
+    n0, n1, n2 = float(pos[w, 3]), float(pos[w, 4]), float(pos[w, 5])
+    while j != EMPTY:
+        jr = np.uint64(REC * j)
+        s = (float(recf[jr]) - w0) * n0 + (float(recf[jr + np.uint64(1)]) - w1) * n1 + \
+            (float(recf[jr + np.uint64(2)]) - w2) * n2
+        if abs(s) > tau_h:
+            rec[jr + np.uint64(9)] = w
+        j = np.int64(rec[jr + np.uint64(7)])
+
+
+@njit(cache=True)
+def _across(rec, recf, jr, pos, y, tau_h):
+    """Is y beyond tau on the other side of the plane of the surface the
+    line ran along after the waiting voxel x (record at jr) joined it? A
+    line parallel to a wall, a cell thick, can pass from one side of the
+    wall to the other inside the wall's cells (a lid's inner edge looking
+    down along the box's wall, the floor just outside it)."""
+    w = np.int64(rec[jr + np.uint64(9)])
+    w0, w1, w2 = float(pos[w, 0]), float(pos[w, 1]), float(pos[w, 2])
+    n0, n1, n2 = float(pos[w, 3]), float(pos[w, 4]), float(pos[w, 5])
+    sx = (float(recf[jr]) - w0) * n0 + (float(recf[jr + np.uint64(1)]) - w1) * n1 + \
+        (float(recf[jr + np.uint64(2)]) - w2) * n2
+    sy = (float(pos[y, 0]) - w0) * n0 + (float(pos[y, 1]) - w1) * n1 + (float(pos[y, 2]) - w2) * n2
+    return (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h)
 
 
 @njit(cache=True)
@@ -351,7 +388,11 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
             ny0, ny1, ny2 = float(pos[yr + np.uint64(3)]), float(pos[yr + np.uint64(4)]), float(pos[yr + np.uint64(5)])
             o = ny0 * ux + ny1 * uy + ny2 * uz
             if o == 0.0:
-                continue  # parallel to the line: neither sends nor receives
+                # parallel to the line: neither sends nor receives, but a waiting voxel clearly on one
+                # side of its plane has passed a surface the line runs along (see _across)
+                if head != EMPTY:
+                    _passed(y, pos2, head, rec, recf, tau_h)
+                continue
             cy0, cy1, cy2 = float(pos[yr]), float(pos[yr + U1]), float(pos[yr + U2])
             ycut = pos[yr + np.uint64(6)] != 0.0
             prev = EMPTY
@@ -377,8 +418,9 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
                                           _back_to_back(rec, recf, jr, pos_all, pos2, y, cutp)):
                         xe = np.int64(rec[jr + np.uint64(6)])
                         x = xe if xe >= 0 else -xe - 1
-                        if (m == 1 and xe >= 0 and not ycut) or \
-                                not _hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell2, cutp, tau_h):
+                        if ((m == 1 and xe >= 0 and not ycut) or
+                                not _hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell2, cutp, tau_h)) and \
+                                (rec[jr + np.uint64(9)] == EMPTY or not _across(rec, recf, jr, pos2, y, tau_h)):
                             # deferred store: prefetched now, written RING gathers later (a
                             # store that misses the cache holds up every later store; a
                             # prefetch holds up nothing): 1.1x at a million voxels
@@ -451,6 +493,7 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
                 v = np.int64(order[np.uint64(y)])
                 rec[jr + np.uint64(6)] = -v - 1 if ycut else v
                 rec[jr + np.uint64(7)] = head
+                rec[jr + np.uint64(9)] = EMPTY  # no surface along the line passed yet
                 head = j
                 last = y
         tab[tr + U1] = head
