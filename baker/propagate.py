@@ -125,7 +125,7 @@ class LineSweeper:
         """Working memory of a bounce beyond the voxel arrays (the line
         tables at their largest; waiting records not counted: only the live
         ones are touched, a few per cent of the voxels)."""
-        per_voxel = 32 + 4 * HIT_BATCH + 2 * 8 + 24 + 8  # axis copy, hits, two lanes' S sums, the outputs
+        per_voxel = 32 + 4 * HIT_BATCH + 24 + 8  # axis copy, hits, the outputs (gathered sums, S)
         return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
             (12 + 2 * 4) * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel  # cells, line ids
 

@@ -59,9 +59,9 @@ time their line meets a surface):
   B(y) into the gathered sums there instead made the sweep 1.6x slower at
   a million voxels (measured): a random read-modify-write of 24 bytes into
   24 MB per gather. The hit is a 4-byte write, and the collecting pass
-  reads and writes the sums in sequence, once per HIT_BATCH families;
-- the quadrature sums S (n,) in the axis's order (written as the sweep
-  passes).
+  reads and writes the sums in sequence, once per HIT_BATCH families,
+  with the quadrature sums S (the sweep kept them per axis and lane: 16
+  bytes per voxel more, and an update per voxel it starts a ray from).
 The sweep prefetches, a few cells ahead, the table entry, then the head
 record (prefetching the head voxel's sums as well was measured to cost more
 than it saves: it needs a load of the record). The rare paths (cells with
@@ -329,7 +329,7 @@ def _unlink(j, nj, prev, head, rec, free, nfree):
 
 
 @njit(cache=True)
-def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, ux, uy, uz, weight, forward, tau, kappa,
+def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, ux, uy, uz, weight, forward, tau, kappa,
            dense, tab, mask, stamp, rec, recf, free, buf, bkey):
     """One sweep of one direction (forwards: +s, backwards: -s) over the
     voxels in this axis's order (index = position in the order; lengths in
@@ -477,7 +477,6 @@ def _sweep(starts, lid, gcell2, order, pos, pos_all, cutp, hit, nb, col, quad, u
                         prev = j
                         low = min(low, d)
                     j = nj
-                quad[np.uint64(y)] += o * weight
                 if nfree > 0:
                     nfree -= 1
                     j = np.int64(free[np.uint64(nfree)])
@@ -516,16 +515,6 @@ def _permute(order, st, cell, pos_all, pos, gcell):
             gcell[g, c] = cell[v, c]
 
 
-@njit(cache=True, parallel=True)
-def _scatter_add(order, quad_k, quad):
-    """Adds an axis's quadrature sums (two lanes) back in voxel order and
-    clears them."""
-    for i in prange(order.shape[0]):
-        quad[order[i]] += quad_k[0, i] + quad_k[1, i]
-        quad_k[0, i] = 0.0
-        quad_k[1, i] = 0.0
-
-
 @njit(cache=True)
 def _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid):
     """Line id of every cell for one family (shared by its two sweeps):
@@ -545,10 +534,13 @@ def _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid):
 
 
 @njit(cache=True, parallel=True)
-def _collect(hit, nf, fams, units, weights, pos_all, radiosity, gat):
+def _collect(hit, nf, fams, units, weights, pos_all, radiosity, gat, quad):
     """Adds the gathers of nf families (fams, in order) that the sweeps
     recorded in hit (n, HIT_BATCH): per voxel the voxel its ray met (-1:
-    none; reset here), gathered along s or -s, whichever its front faces."""
+    none; reset here), gathered along s or -s, whichever its front faces;
+    and their terms of S(n) = sum |n.s| dW / pi (what a sweep would add
+    for each voxel it starts a ray from, in the same order as the gathers:
+    a closed scene of uniform radiosity gathers exactly S)."""
     n = hit.shape[0]
     for x in prange(n):
         # the radiosity rows met are scattered: prefetch those of a voxel AHEAD_COLLECT on
@@ -561,29 +553,32 @@ def _collect(hit, nf, fams, units, weights, pos_all, radiosity, gat):
                     prefetch(radiosity, ya)
         n0, n1, n2 = float(pos_all[x, 3]), float(pos_all[x, 4]), float(pos_all[x, 5])
         g0, g1, g2 = gat[x, 0], gat[x, 1], gat[x, 2]
+        sq = quad[x]
         for i in range(nf):
+            f = fams[i]
+            ux, uy, uz = units[f, 0], units[f, 1], units[f, 2]
+            o = n0 * ux + n1 * uy + n2 * uz  # as the sweep along s or -s computes it
+            if o < 0.0:
+                o = n0 * -ux + n1 * -uy + n2 * -uz
+            w = o * weights[f]
+            sq += w
             y = hit[x, i]
             if y >= 0:
                 hit[x, i] = EMPTY
-                f = fams[i]
-                ux, uy, uz = units[f, 0], units[f, 1], units[f, 2]
-                o = n0 * ux + n1 * uy + n2 * uz
-                if o < 0.0:
-                    o = n0 * -ux + n1 * -uy + n2 * -uz
-                w = o * weights[f]
                 g0 += radiosity[y, 0] * w
                 g1 += radiosity[y, 1] * w
                 g2 += radiosity[y, 2] * w
         gat[x, 0] = g0
         gat[x, 1] = g1
         gat[x, 2] = g2
+        quad[x] = sq
 
 
 @njit(cache=True)
-def _family(f, fi, col, st, gcell, order, pos, pos_all, cutp, hit, quad_k, cell_lo, cell_hi, vectors, units, weights,
+def _family(f, fi, col, st, gcell, order, pos, pos_all, cutp, hit, cell_lo, cell_hi, vectors, units, weights,
             offsets, k, tau, kappa, size, tab, rec, free, buf, bkey, lid, stamp0):
     """Both sweeps of family f (its fi-th of this axis), its hits into
-    column col, with one lane's line table, records and S sums."""
+    column col, with one lane's line table and records."""
     k1, k2 = (k + 1) % 3, (k + 2) % 3
     A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
     mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
@@ -597,18 +592,18 @@ def _family(f, fi, col, st, gcell, order, pos, pos_all, cutp, hit, quad_k, cell_
     _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid)
     for sw in range(2):
         # a stamp per sweep: the lane's table serves both
-        _sweep(st, lid, gcell, order, pos, pos_all, cutp, hit.reshape(-1), hit.shape[1], col, quad_k,
+        _sweep(st, lid, gcell, order, pos, pos_all, cutp, hit.reshape(-1), hit.shape[1], col,
                units[f, 0], units[f, 1], units[f, 2], weights[f], sw == 0, tau, kappa, dense,
                tab.reshape(-1), size - 1, 2 * (stamp0 + fi) + sw, rec.reshape(-1), rec.view(np.float32).reshape(-1),
                free, buf, bkey)
 
 
 @njit(cache=True, parallel=True)
-def _families(fams, st, gcell, order, pos, pos_all, cutp, radiosity, hit, gat, quad_k, cell_lo, cell_hi, vectors,
+def _families(fams, st, gcell, order, pos, pos_all, cutp, radiosity, hit, gat, quad, cell_lo, cell_hi, vectors,
               units, weights, offsets, k, tau, kappa, size, tabs, recs, frees, bufs, bkeys, lid, stamp0):
     """The families of one axis in batches of hit.shape[1]: two lanes share
     a batch (lane l takes its families l, l + 2, ...; each lane has its own
-    table, records, line ids and S sums, and a family its own hit column),
+    table, records and line ids, and a family its own hit column),
     then the batch's gathers are collected in family order. The lanes are
     fixed by the family's place, not by the threads: the same sums for any
     thread count. Two lanes sweeping the same direction through the same
@@ -620,10 +615,10 @@ def _families(fams, st, gcell, order, pos, pos_all, cutp, radiosity, hit, gat, q
         nbf = min(nb, fams.shape[0] - b0)
         for lane in prange(2):
             for col in range(lane, nbf, 2):
-                _family(fams[b0 + col], b0 + col, col, st, gcell, order, pf, pos_all, cutp, hit, quad_k[lane], cell_lo,
+                _family(fams[b0 + col], b0 + col, col, st, gcell, order, pf, pos_all, cutp, hit, cell_lo,
                         cell_hi, vectors, units, weights, offsets, k, tau, kappa, size, tabs[lane], recs[lane],
                         frees[lane], bufs[lane], bkeys[lane], lid[lane], stamp0)
-        _collect(hit, nbf, fams[b0:b0 + nbf], units, weights, pos_all, radiosity, gat)
+        _collect(hit, nbf, fams[b0:b0 + nbf], units, weights, pos_all, radiosity, gat, quad)
 
 
 def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, radiosity, vectors, axes, units, weights,
@@ -652,7 +647,6 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
     ng = starts.shape[1] - 1
     pos = np.empty((n, 8), np.float32)
     gcell = np.empty((ng, 3), np.int32)
-    quad_k = np.zeros((2, n))  # per lane
     tabs = np.full((2, table_size, 4), -1, np.int32)
     # waiting records: only the live ones are touched (a few per cent of n)
     recs = np.empty((2, n, REC), np.int32)
@@ -667,10 +661,9 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
         if len(fams) == 0:
             continue
         _permute(orders[k], starts[k], cell, pos_all, pos, gcell)
-        _families(fams, starts[k], gcell, orders[k], pos, pos_all, cutp, radiosity, hit, gathered, quad_k, cell_lo,
+        _families(fams, starts[k], gcell, orders[k], pos, pos_all, cutp, radiosity, hit, gathered, quad, cell_lo,
                   cell_hi, vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees, bufs, bkeys,
                   lid, stamp)
         stamp += len(fams)  # stamps 2 (stamp + fi) + sweep
-        _scatter_add(orders[k], quad_k, quad)
     return gathered, quad
 
