@@ -119,7 +119,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         keep = []
                         for x in waiting:
                             d = (centroid[x] - centroid[y]) @ normal[y]
-                            backs = sheet[x] and sheet[y] and float(normal[x] @ normal[y]) <= -0.999 and d <= tau * h
+                            backs = sheet[x] and sheet[y] and float(normal[x] @ normal[y]) <= -0.99 and d <= tau * h
                             if d >= (0.0 if sheet[y] else -tau * h) and not backs:
                                 between = any(hidden_by(q, x, y) for q in members
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))

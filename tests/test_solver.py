@@ -169,9 +169,11 @@ def test_double_sided_closed_box(make_scene):
 def test_double_sided_furnace_sphere(make_scene, rho):
     """A closed double-sided sphere: its inner faces see only inner faces,
     B = E / (1 - rho) (the outer faces see nothing). The faces of a curved
-    sheet are not split or cut by each other's planes. Measured at 16
-    cells: mean 0.998, min 0.887 (one-sided: 0.9996, 0.975); 0.81 and 0.76
-    before the faces were told apart."""
+    sheet are not split or cut by each other's planes, and a face does not
+    see the other face of its sheet in its own or the next cell (normals
+    opposite within 8 degrees). Measured at 16 cells: mean 0.998, min 0.949
+    (one-sided: 0.9996, 0.975); 0.81 and 0.76 before the faces were told
+    apart."""
     b = GltfBuilder()
     m = b.material("furnace", (rho,) * 3, emission=(1 / np.pi,) * 3, double_sided=True)
     b.mesh("sphere", *icosphere(4, 1.0, inward=True), m)
@@ -181,7 +183,7 @@ def test_double_sided_furnace_sphere(make_scene, rho):
     b_in = sol.radiosity[inner, 0] * (1 - rho)
     w = sol.voxels.area[inner] / sol.voxels.area[inner].sum()
     assert abs(float(np.sum(b_in * w)) - 1) < 0.01
-    assert b_in.min() > 0.85
+    assert b_in.min() > 0.92
 
 
 @pytest.mark.parametrize("frac", [0.05, 0.15, 0.3, 0.5, 0.85, 0.95])

@@ -221,12 +221,13 @@ def _across(rec, recf, jr, pos, y, tau_h):
 def _back_to_back(rec, recf, jr, pos_all, pos, y, cutp):
     """Is y, facing the waiting voxel x (record at jr) within tau of x's
     plane, the back of x's own sheet (both faces of two-sided surfaces, with
-    opposite normals)? Then x does not see it: a digital line a cell thick
-    can meet the sheet's other face in the next cell before it leaves the
-    sheet's plane."""
+    normals opposite within 8 degrees: on a curved sheet the faces in one
+    cell can come from different pieces)? Then x does not see it: a digital
+    line a cell thick can meet the sheet's other face in the next cell
+    before it leaves the sheet's plane."""
     dot = float(recf[jr + np.uint64(3)]) * float(pos[y, 3]) + float(recf[jr + np.uint64(4)]) * float(pos[y, 4]) + \
         float(recf[jr + np.uint64(5)]) * float(pos[y, 5])
-    if dot > -0.999:
+    if dot > -0.99:
         return False
     xe = np.int64(rec[jr + np.uint64(6)])
     x = xe if xe >= 0 else -xe - 1
