@@ -19,6 +19,18 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     return fast, slow
 
 
+def assert_matches_reference(v, seed, offset_seed):
+    """Kernel and plain-Python reference agree on random radiosity (r = 2);
+    returns the kernel's gathered sums."""
+    radiosity = np.random.default_rng(seed).random((len(v), 3))
+    dirs = direction_set(2)
+    sw = LineSweeper(v)
+    (g, s), (g_ref, s_ref) = gather_both(v, radiosity, dirs, sw.offsets(dirs, offset_seed, 3), sw)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
+    return g
+
+
 @pytest.mark.parametrize("name,builder,res", [
     ("obstacles", furnace_obstacles, 8),
     ("rooms_midcell", lambda: two_rooms(wall_x=1.0 + 0.5 * 2 / 10), 10),
@@ -27,15 +39,7 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     ("closed_box_double_sided", lambda: closed_box(double_sided=True), 10),
 ])
 def test_kernel_matches_slow_reference(make_scene, name, builder, res):
-    scene = make_scene(builder(), f"prop_{name}")
-    v = voxelize(scene, res)
-    rng = np.random.default_rng(1)
-    radiosity = rng.random((len(v), 3))
-    dirs = direction_set(2)
-    sw = LineSweeper(v)
-    (g, s), (g_ref, s_ref) = gather_both(v, radiosity, dirs, sw.offsets(dirs, 5, 3), sw)
-    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
+    g = assert_matches_reference(voxelize(make_scene(builder(), f"prop_{name}"), res), 1, 5)
     assert (g > 0).any()
 
 
@@ -65,14 +69,7 @@ def terraces(res, tilt=0.02):
 def test_lines_lying_in_a_surface_match_reference(make_scene, res):
     """The waiting list's bound (one surface's run along a line tested in
     O(1)) gives what testing every waiting voxel gives."""
-    v = voxelize(make_scene(terraces(res), f"prop_terraces_{res}"), res)
-    rng = np.random.default_rng(4)
-    radiosity = rng.random((len(v), 3))
-    dirs = direction_set(2)
-    sw = LineSweeper(v)
-    (g, s), (g_ref, s_ref) = gather_both(v, radiosity, dirs, sw.offsets(dirs, 1, 2), sw)
-    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-14)
+    assert_matches_reference(voxelize(make_scene(terraces(res), f"prop_terraces_{res}"), res), 4, 1)
 
 
 def test_hashed_line_table_equals_dense(make_scene):
