@@ -2,6 +2,13 @@
 import numpy as np
 
 
+def dot(a, b):
+    """a . b of two 3-vectors summed left to right, as the kernels do: numpy's
+    `@` goes through BLAS, whose rounding depends on the CPU it dispatches
+    to (an exact tie in a kernel is not one in BLAS on every machine)."""
+    return float(a[0]) * float(b[0]) + float(a[1]) * float(b[1]) + float(a[2]) * float(b[2])
+
+
 def ray_triangles(origin, direction, corners, tmin=0.0, tmax=np.inf):
     """Brute force: one ray against every triangle (nt, 3, 3) with the
     watertight test of Woop et al. 2013 written out in numpy; returns
@@ -77,67 +84,67 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
             u = units[f] * sign
             for members in lines.values():
                 def order_key(v):
-                    o = float(normal[v] @ u)
+                    o = dot(normal[v], u)
                     # ties: +1 first (a box on a floor), but a sheet's faces -1 first (back to back)
-                    return (sign * int(cell[v][k]), float(centroid[v] @ u), 1 if (o > 0) == bool(sheet[v]) else 0)
+                    return (sign * int(cell[v][k]), dot(centroid[v], u), 1 if (o > 0) == bool(sheet[v]) else 0)
                 def cut_between(a, b):
                     sign = cut[a][4]
                     if sign == 0:
                         return False
                     n_, d_ = cut[a][:3], cut[a][3]
-                    sa, sb = centroid[a] @ n_ - d_, centroid[b] @ n_ - d_
+                    sa, sb = dot(centroid[a], n_) - d_, dot(centroid[b], n_) - d_
                     if abs(sb) <= tau * h:  # b on that surface: the side it faces
-                        return float(normal[b] @ n_) * sign < -0.5
+                        return dot(normal[b], n_) * sign < -0.5
                     if sb * sign >= -tau * h or sa == sb:
                         return False
                     if cut[b][4] != 0:
-                        dot = float(n_ @ cut[b][:3])
-                        if abs(dot) > 0.999 and abs(d_ - dot * cut[b][3]) < tau * h:
+                        cn = dot(n_, cut[b][:3])
+                        if abs(cn) > 0.999 and abs(d_ - cn * cut[b][3]) < tau * h:
                             return True
                     p = centroid[a] + (centroid[b] - centroid[a]) * (sa / (sa - sb))
                     return bool(np.all(p >= cell[a] - 3.0) and np.all(p <= cell[a] + 4.0))
 
                 def hidden_by(q, x, y):
-                    sx = (centroid[x] - centroid[q]) @ normal[q]
-                    sy = (centroid[y] - centroid[q]) @ normal[q]
+                    sx = dot(centroid[x] - centroid[q], normal[q])
+                    sy = dot(centroid[y] - centroid[q], normal[q])
                     if not ((sx > tau * h and sy < -tau * h) or (sx < -tau * h and sy > tau * h)):
                         return False
                     p = centroid[x] + (centroid[y] - centroid[x]) * (sx / (sx - sy))
                     lo = origin + cell[y] * h
                     inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
-                    return inside and ((p - centroid[y]) @ normal[y]) * ((centroid[q] - centroid[y]) @ normal[y]) > 0
+                    return inside and dot(p - centroid[y], normal[y]) * dot(centroid[q] - centroid[y], normal[y]) > 0
                 waiting, last = [], None
                 passed = {}  # waiting voxel -> the last voxel parallel to the line it passed, beyond tau of its plane
                 for y in sorted(members, key=order_key):
-                    o = float(normal[y] @ u)
+                    o = dot(normal[y], u)
                     if o == 0.0:
                         for x in waiting:
-                            if abs((centroid[x] - centroid[y]) @ normal[y]) > tau * h:
+                            if abs(dot(centroid[x] - centroid[y], normal[y])) > tau * h:
                                 passed[x] = y
                         continue
                     if o < 0:
                         keep = []
                         for x in waiting:
-                            d = (centroid[x] - centroid[y]) @ normal[y]
-                            backs = sheet[x] and sheet[y] and float(normal[x] @ normal[y]) <= -0.99 and d <= tau * h
+                            d = dot(centroid[x] - centroid[y], normal[y])
+                            backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.99 and d <= tau * h
                             if d >= (0.0 if sheet[y] else -tau * h) and not backs:
                                 between = any(hidden_by(q, x, y) for q in members
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
                                 if cut is not None:
                                     between = between or cut_between(y, x) or cut_between(x, y)
-                                    d_xy = (centroid[x] - centroid[y]) @ normal[y]
+                                    d_xy = dot(centroid[x] - centroid[y], normal[y])
                                     if d_xy < 0 and cut[x][4] != 0:  # x's cell is cut by y's own plane
-                                        dot = float(cut[x][:3] @ normal[y])
-                                        same = abs(dot) > 0.999 and abs(cut[x][3] - dot * (centroid[y] @ normal[y])) < tau * h
+                                        cn = dot(cut[x][:3], normal[y])
+                                        same = abs(cn) > 0.999 and abs(cut[x][3] - cn * dot(centroid[y], normal[y])) < tau * h
                                         between = between or same
                                 if x in passed:  # across the plane of a surface the line ran along
                                     w = passed[x]
-                                    sx = (centroid[x] - centroid[w]) @ normal[w]
-                                    sy = (centroid[y] - centroid[w]) @ normal[w]
+                                    sx = dot(centroid[x] - centroid[w], normal[w])
+                                    sy = dot(centroid[y] - centroid[w], normal[w])
                                     between = between or (sx > tau * h and sy < -tau * h) or \
                                         (sx < -tau * h and sy > tau * h)
                                 if not between:
-                                    gathered[x] += radiosity[y] * float(normal[x] @ u) * weights[f]
+                                    gathered[x] += radiosity[y] * dot(normal[x], u) * weights[f]
                                     if x == trace:
                                         sources.append((f, sign, y))
                             else:
@@ -145,11 +152,11 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         waiting = keep
                     else:
                         def convex(z):
-                            dz = (centroid[z] - centroid[y]) @ normal[y]
-                            ez = (centroid[y] - centroid[z]) @ normal[z]
+                            dz = dot(centroid[z] - centroid[y], normal[y])
+                            ez = dot(centroid[y] - centroid[z], normal[z])
                             return dz < 0 and ez < 0 and dz >= -kappa * h
                         edge_last = last is not None and convex(last)
-                        waiting = [x for x in waiting if (centroid[x] - centroid[y]) @ normal[y] >= -tau * h
+                        waiting = [x for x in waiting if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h
                                    or edge_last or convex(x)]
                         quad[y] += o * weights[f]
                         passed.pop(y, None)
