@@ -1,11 +1,24 @@
-"""voxgi baker: scene -> voxels -> solution -> images/lightmaps.
+"""voxgi baker: scene -> voxels -> solution -> images (and, as they land,
+VPLs -> light tree -> lightmaps -> bake file).
 
-Library surface (STYLE.md): `load_scene`, `voxelize`, `solve`, and the
-renderers in `baker.pathtrace` / `baker.voxelview`.
+The library face (the command line `voxbake` is a thin layer over it):
+
+    scene = load_scene("scenes/cornell_box.glb")   # or a built-in name: "cornell_box"
+    voxels = voxelize(scene, resolution=64)
+    solution = solve(scene, solver_config("default"))
+    image = render(scene, method="voxels", solution=solution)
+    write_image("out.png", image)
 """
 __version__ = "0.1.0"
 
-from .errors import VoxgiError
-from .scene import load_scene
+from .config import PRESETS, SolverConfig, solver_config
+from .errors import BakeFileError, BudgetError, ConfigError, GLError, SceneError, VoxgiError, VoxgiWarning
+from .render import read_exr, render, write_image
+from .scene import Scene, builtin_scenes, load_scene
+from .solve import Solution, solve
+from .solve.audit import audit
+from .voxels import Voxels, voxelize
 
-__all__ = ["VoxgiError", "load_scene", "__version__"]
+__all__ = ["BakeFileError", "BudgetError", "ConfigError", "GLError", "PRESETS", "Scene", "SceneError", "Solution",
+           "SolverConfig", "Voxels", "VoxgiError", "VoxgiWarning", "__version__", "audit", "builtin_scenes",
+           "load_scene", "read_exr", "render", "solve", "solver_config", "voxelize", "write_image"]

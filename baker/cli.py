@@ -1,8 +1,9 @@
 """`voxbake`: the baker's command line, a thin layer over the library.
 
-Every subcommand prints `error: <file>: <problem>` and exits 2 on bad
-input, never a traceback from inside numba; outputs are written atomically
-so Ctrl-C or an error leaves nothing half-written.
+Every subcommand checks its arguments and output paths before any work,
+prints `error: <file>: <problem>` and exits 2 on bad input (never a
+traceback from inside numba), writes outputs atomically, and on Ctrl-C
+prints `interrupted: nothing was written` and exits 130.
 """
 from __future__ import annotations
 
@@ -16,26 +17,76 @@ import numpy as np
 from .errors import VoxgiError, VoxgiWarning
 
 EPILOG = """examples:
-  voxbake info scenes/cornell_box.glb
-  voxbake render scenes/cornell_box.glb --method pathtrace --spp 256 -o cornell.exr
-  voxbake render scenes/cornell_box.glb --method voxels --preset preview -o voxels.png --stats s.json
+  voxbake scenes
+  voxbake info cornell_box
+  voxbake render cornell_box --method pathtrace --spp 256 -o cornell.exr
+  voxbake render cornell_box --method voxels --preset preview -o voxels.png --stats s.json
+  voxbake render bunny.ply --sky 1,1,1 --sun 30,45,3 --look-from 0,0.2,0.5 --look-at 0,0.1,0 -o bunny.png
+
+Scenes: a .glb/.gltf/.obj/.ply file, or a built-in scene by name (`voxbake scenes`).
+The first run of a method compiles its kernels (10-30 s); later runs reuse them.
 """
 
 
-def _progress(total, desc):
-    from tqdm import tqdm
-    return tqdm(total=total, desc=desc, unit="row", leave=False, file=sys.stderr, disable=None)
+def _triple(text, what="X,Y,Z"):
+    try:
+        v = [float(t) for t in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if len(v) != 3 or not np.all(np.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"expected {what} (three numbers), got {text!r}")
+    return np.array(v)
 
 
-def _threads(n):
-    import numba
-    if n:
-        numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+def _colour(text):
+    v = _triple(text, "R,G,B")
+    if (v < 0).any():
+        raise argparse.ArgumentTypeError(f"radiance must not be negative, got {text!r}")
+    return v
+
+
+def _sun(text):
+    az, el, e = _triple(text, "AZIMUTH,ELEVATION,IRRADIANCE")
+    if not -90 <= el <= 90 or e < 0:
+        raise argparse.ArgumentTypeError(f"elevation must lie in -90..90 and irradiance be >= 0, got {text!r}")
+    return az, el, e
+
+
+def _load(args):
+    """The scene with the lights the command line adds."""
+    from .scene import Sky, load_scene, sun
+    lights = [sun(*args.sun)] if getattr(args, "sun", None) is not None else []
+    sky = Sky(args.sky, args.sky_mode == "hemisphere") if getattr(args, "sky", None) is not None else None
+    return load_scene(args.scene, one_sided=args.one_sided, lights=lights, sky=sky)
+
+
+def _camera(args, scene, bvh):
+    from .scene import adjust_camera
+    cam = scene.camera(args.camera, bvh)
+    return adjust_camera(cam, args.look_from, args.look_at, args.up, args.fov)
+
+
+def _check_common(args):
+    """Argument checks that need no scene, before any work."""
+    from .config import check_threads
+    from .fileio import check_output_path
+    check_threads(args.threads)
+    if getattr(args, "stats", None):
+        check_output_path(args.stats)
+    if getattr(args, "fov", None) is not None and not 0 < args.fov < 180:
+        raise VoxgiError(f"--fov must lie between 0 and 180 degrees (got {args.fov})")
+
+
+def cmd_scenes(args):
+    from .scene import builtin_scenes
+    from .scene.load import resolve
+    for name in builtin_scenes():
+        print(f"{name:<26} {resolve(name)}")
+    return 0
 
 
 def cmd_info(args):
-    from .scene import load_scene
-    scene = load_scene(args.scene, one_sided=args.one_sided)
+    scene = _load(args)
     lo, hi = scene.bounds()
     area = scene.triangle_areas()
     power = scene.emitted_power()
@@ -54,65 +105,71 @@ def cmd_info(args):
     print(f"emitters   {ne} triangles, total emitted power {np.array2string(power, precision=5)} W"
           f" (sum {power.sum():.6g} W)")
     print(f"lights     {len(scene.lights)} punctual")
-    for l in scene.lights:
-        unit = "W/m^2" if l.kind == "directional" else "W/sr"
-        print(f"  {l.name:<20} {l.kind:<12} {np.array2string(l.intensity, precision=4)} {unit}")
+    for light in scene.lights:
+        unit = "W/m^2" if light.kind == "directional" else "W/sr"
+        print(f"  {light.name:<20} {light.kind:<12} {np.array2string(light.intensity, precision=4)} {unit}")
+    if scene.sky is not None:
+        where = "upper hemisphere" if scene.sky.hemisphere else "whole sphere"
+        print(f"sky        radiance {np.array2string(scene.sky.radiance, precision=4)} W m^-2 sr^-1 ({where})")
     print(f"cameras    {len(scene.cameras)}")
     for i, c in enumerate(scene.cameras):
         print(f"  [{i}] {c.name:<20} at {np.array2string(c.position, precision=4)} looking "
               f"{np.array2string(c.forward, precision=3)}  yfov {np.degrees(c.yfov):.1f} deg")
-    for w in scene.warnings:
-        print(f"warning: {w}")
     return 0
 
 
+def _solver_config(args, **knobs):
+    from .config import solver_config
+    from .errors import ConfigError
+    try:
+        return solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size, **knobs)
+    except ConfigError as e:
+        raise ConfigError(f"invalid solver setting: {e}") from None
+
+
+def _render_config(args):
+    return _solver_config(args, radius=args.radius, photons=args.photons, seed=args.seed, threads=args.threads,
+                          memory_budget_mb=args.memory_budget, schedule=args.schedule, tolerance=args.tolerance,
+                          max_bounces=args.max_bounces)
+
+
 def cmd_render(args):
-    from . import bvh as bvh_mod
-    from . import surfaces
-    from .images import write_image
-    from .render import camera_array
-    from .scene import load_scene
+    from .config import threads
+    from .fileio import check_output_path
+    from .progress import bar
+    from .render import camera_array, write_image
+    from .scene import build_scene_bvh, pack
     from .stats import Stats
-    ext = os.path.splitext(args.output)[1].lower()
-    if ext not in (".exr", ".png"):
-        raise VoxgiError(f"unsupported image format {ext or '(none)'!r}; use .exr or .png", args.output)
-    if not os.path.isdir(os.path.dirname(os.path.abspath(args.output))):
-        raise VoxgiError("output folder does not exist", args.output)
+    check_output_path(args.output, (".exr", ".png"))
+    _check_common(args)
     if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
     if args.spp < 1:
         raise VoxgiError(f"--spp must be at least 1 (got {args.spp})")
-    _threads(args.threads)
+    config = _render_config(args) if args.method == "voxels" else None
     stats = Stats("render " + args.method)
-    with stats.stage("load"):
-        scene = load_scene(args.scene, one_sided=args.one_sided)
-    camera = scene.camera(args.camera)
-    cam = camera_array(camera, args.width, args.height)
-    with stats.stage("bvh"):
-        tree = bvh_mod.build_scene_bvh(scene)
-        surf = surfaces.pack(scene)
-    stats.count(triangles=len(scene.triangles), bvh_nodes=tree.node_count, width=args.width,
-                height=args.height, camera=camera.name)
-    if args.method == "pathtrace":
-        from .pathtrace import render_pathtrace
-        with stats.stage("pathtrace"), _progress(args.height, f"path tracing {args.spp} spp") as bar:
-            image = render_pathtrace(tree, surf, cam, args.width, args.height, args.spp, args.seed, bar.update)
-        stats.count(spp=args.spp, camera_paths=args.width * args.height * args.spp)
-    else:
-        from .config import solver_config
-        from .solver import solve
-        from .voxelview import render_voxels
-        try:
-            config = solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size,
-                                   radius=args.radius, photons=args.photons, seed=args.seed, threads=args.threads,
-                                   memory_budget_mb=args.memory_budget, schedule=args.schedule,
-                                   tolerance=args.tolerance, max_bounces=args.max_bounces)
-        except ValueError as e:
-            raise VoxgiError(f"invalid solver setting: {e}") from e
-        solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
-        with stats.stage("voxel_view"), _progress(args.height, "voxel view") as bar:
-            image = render_voxels(tree, surf, solution, cam, args.width, args.height, bar.update)
-        print(solution.summary(), file=sys.stderr)
+    with threads(args.threads):
+        with stats.stage("load"):
+            scene = _load(args)
+        with stats.stage("bvh"):
+            tree = build_scene_bvh(scene)
+            surf = pack(scene)
+        camera = _camera(args, scene, tree)
+        cam = camera_array(camera, args.width, args.height)
+        stats.count(triangles=len(scene.triangles), bvh_nodes=tree.node_count, width=args.width,
+                    height=args.height, camera=camera.name)
+        if args.method == "pathtrace":
+            from .render.pathtrace import render_pathtrace
+            with stats.stage("pathtrace"), bar(args.height, f"path tracing {args.spp} spp", "row") as b:
+                image = render_pathtrace(tree, surf, cam, args.width, args.height, args.spp, args.seed, b.update)
+            stats.count(spp=args.spp, camera_paths=args.width * args.height * args.spp)
+        else:
+            from .render.voxelview import render_voxels
+            from .solve import solve
+            solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
+            with stats.stage("voxel_view"), bar(args.height, "voxel view", "row") as b:
+                image = render_voxels(tree, surf, solution, cam, args.width, args.height, b.update)
+            print(solution.summary(), file=sys.stderr)
     if not np.isfinite(image).all() or image.min() < 0:
         raise VoxgiError("internal error: non-finite or negative pixels (please report)", args.scene)
     with stats.stage("write"):
@@ -124,24 +181,21 @@ def cmd_render(args):
 
 
 def cmd_audit(args):
-    from . import bvh as bvh_mod
-    from . import surfaces
-    from .audit import audit
-    from .config import solver_config
-    from .scene import load_scene
+    from .config import threads
+    from .scene import build_scene_bvh, pack
+    from .solve.audit import audit
     from .voxels import voxelize
-    scene = load_scene(args.scene, one_sided=args.one_sided)
-    try:
-        config = solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size)
-    except ValueError as e:
-        raise VoxgiError(f"invalid solver setting: {e}") from e
+    _check_common(args)
+    config = _solver_config(args)
     if args.families < 1 or args.samples < 1 or args.radius < 1:
         raise VoxgiError("--families, --samples and --radius must be at least 1")
-    tree = bvh_mod.build_scene_bvh(scene)
-    surf = surfaces.pack(scene)
-    vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surf)
-    report = audit(scene, vox, tree, surf, radius=args.radius, families=args.families, samples=args.samples,
-                   seed=args.seed)
+    with threads(args.threads):
+        scene = _load(args)
+        tree = build_scene_bvh(scene)
+        surf = pack(scene)
+        vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surf)
+        report = audit(scene, vox, tree, surf, radius=args.radius, families=args.families, samples=args.samples,
+                       seed=args.seed)
     print(f"{len(vox)} voxels, cell {vox.cell_size:.4g}")
     print(report.summary())
     for centroid, direction, kind in report.worst:
@@ -149,43 +203,32 @@ def cmd_audit(args):
     return 0
 
 
-def build_parser():
-    ap = argparse.ArgumentParser(
-        prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
-        description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer.")
-    ap.add_argument("--version", action="version", version="voxgi 0.1.0")
-    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-
-    p = sub.add_parser("info", help="print what a scene holds (triangles, materials, emitters, cameras, bounds)",
-                       description="Load a scene (.glb/.gltf/.obj/.ply) and print its triangles, materials, "
-                                   "emitters with total emitted power, punctual lights, cameras and bounds.")
-    p.add_argument("scene", help="scene file: .glb, .gltf, .obj or .ply")
+def _scene_args(p):
+    p.add_argument("scene", help="scene file (.glb, .gltf, .obj, .ply) or a built-in scene's name")
     p.add_argument("--one-sided", action="store_true", help="treat OBJ/PLY triangles as one-sided (default: double)")
-    p.set_defaults(func=cmd_info)
+    g = p.add_argument_group("extra light (for a model with no lamp of its own)")
+    g.add_argument("--sky", type=_colour, metavar="R,G,B",
+                   help="a uniform sky of this radiance (W m^-2 sr^-1) around the scene")
+    g.add_argument("--sky-mode", choices=("hemisphere", "sphere"), default="hemisphere",
+                   help="the sky lights from the upper hemisphere (+Y up, the default) or from every direction")
+    g.add_argument("--sun", type=_sun, metavar="AZIMUTH,ELEVATION,IRRADIANCE",
+                   help="a sun: azimuth in degrees from +Z towards +X, elevation above the horizon (+Y up), "
+                        "irradiance in W/m^2 on a surface facing it")
 
-    p = sub.add_parser("render", help="render an image: reference path tracer or the direct voxel view",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description="Render one camera of a scene.\n\n"
-                                   "  pathtrace  reference path tracer (NEE + MIS, Russian roulette): unbiased,\n"
-                                   "             the yardstick for the other methods\n"
-                                   "  voxels     the voxel GI solution shown directly: each visible point takes\n"
-                                   "             its voxel's outgoing radiance (thesis's 'direct voxel view')\n\n"
-                                   "EXR output is linear radiance (W m^-2 sr^-1); PNG is exposure-adjusted,\n"
-                                   "ACES-filmic tone-mapped sRGB.")
-    p.add_argument("scene", help="scene file: .glb, .gltf, .obj or .ply")
-    p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
-    p.add_argument("--method", choices=("pathtrace", "voxels"), default="pathtrace", help="default: pathtrace")
-    p.add_argument("--camera", default=None, help="camera name or index (default: the first camera)")
-    p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
-    p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
-    p.add_argument("--spp", type=int, default=64, help="pathtrace: samples per pixel (default 64)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same image, any thread count)")
-    p.add_argument("--threads", type=int, default=0, help="worker threads (default: all cores)")
-    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")
-    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
-    p.add_argument("--one-sided", action="store_true", help="treat OBJ/PLY triangles as one-sided")
-    g = p.add_argument_group("voxel solver (--method voxels)")
+
+def _camera_args(p):
+    g = p.add_argument_group("camera")
+    g.add_argument("--camera", default=None,
+                   help="camera name or index in the file (default: its first; none: an automatic camera that "
+                        "sees the scene, inside a closed room or through the open side of a box)")
+    g.add_argument("--look-from", type=_triple, metavar="X,Y,Z", help="camera position (scene units)")
+    g.add_argument("--look-at", type=_triple, metavar="X,Y,Z", help="point the camera looks at")
+    g.add_argument("--up", type=_triple, metavar="X,Y,Z", help="camera up direction (default: the camera's, +Y)")
+    g.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view in degrees")
+
+
+def _solver_args(p):
+    g = p.add_argument_group("voxel solver")
     g.add_argument("--preset", choices=("preview", "default", "high"), default="default",
                    help="solver preset (default: default)")
     g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis")
@@ -196,14 +239,57 @@ def build_parser():
     g.add_argument("--tolerance", type=float, help="stop when new light < tolerance x first bounce")
     g.add_argument("--max-bounces", type=int, help="bounce cap")
     g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")
+
+
+def build_parser():
+    ap = argparse.ArgumentParser(
+        prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
+        description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer. "
+                    "(The lightmap bake and the walkthrough viewer are not built yet: today it renders images.)")
+    ap.add_argument("--version", action="version", version="voxgi 0.1.0")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("scenes", help="list the built-in scenes (usable by name wherever a scene file is asked)",
+                       description="List the scenes shipped with voxgi; give a name instead of a file path.")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("info", help="print what a scene holds (triangles, materials, emitters, cameras, bounds)",
+                       description="Load a scene (.glb/.gltf/.obj/.ply or a built-in name) and print its "
+                                   "triangles, materials, emitters with total emitted power, punctual lights, "
+                                   "cameras and bounds, and what the baker ignores in it.")
+    _scene_args(p)
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("render", help="render an image: reference path tracer or the direct voxel view",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Render one camera of a scene.\n\n"
+                                   "  pathtrace  reference path tracer (NEE + MIS, Russian roulette): unbiased,\n"
+                                   "             the yardstick for the other methods\n"
+                                   "  voxels     the voxel GI solution shown directly: each visible point takes\n"
+                                   "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n\n"
+                                   "EXR output is linear radiance (W m^-2 sr^-1); PNG is exposure-adjusted,\n"
+                                   "ACES-filmic tone-mapped sRGB.")
+    _scene_args(p)
+    p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
+    p.add_argument("--method", choices=("pathtrace", "voxels"), default="pathtrace", help="default: pathtrace")
+    p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
+    p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
+    p.add_argument("--spp", type=int, default=64, help="pathtrace: samples per pixel (default 64)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same image, any thread count)")
+    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
+    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")
+    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    _camera_args(p)
+    _solver_args(p)
     p.set_defaults(func=cmd_render)
 
-    p = sub.add_parser("audit", help="compare the voxel lines' visibility with continuous rays (METHOD.md 4)",
+    p = sub.add_parser("audit", help="compare the voxel lines' visibility with continuous rays",
                        description="Visibility audit: for sampled (voxel, direction) pairs, compare the first voxel "
                                    "the digital line meets with the first surface a continuous ray hits. 'sees "
                                    "through' (the line passes an occluder) is the leak-like figure; 'misses' is an "
                                    "upper bound (it also counts grazing within a cell).")
-    p.add_argument("scene", help="scene file: .glb, .gltf, .obj or .ply")
+    _scene_args(p)
     p.add_argument("--preset", choices=("preview", "default", "high"), default="default")
     p.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis")
     p.add_argument("--cell-size", type=float, help="voxel cell size in scene units")
@@ -211,26 +297,53 @@ def build_parser():
     p.add_argument("--families", type=int, default=16, help="families sampled (default 16)")
     p.add_argument("--samples", type=int, default=2000, help="voxels per family (default 2000)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--one-sided", action="store_true", help="treat OBJ/PLY triangles as one-sided")
+    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
     p.set_defaults(func=cmd_audit)
     return ap
 
 
-def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+def interrupted(exc: BaseException) -> bool:
+    """Was this exception caused by Ctrl-C? numba's dispatcher, interrupted
+    while it converts arguments, raises a SystemError whose context is the
+    KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
-    def show_warning(message, category, filename, lineno, file=None, line=None):
+
+def run(func, *args):
+    """Calls func(*args) the way every voxgi command runs: one-line errors
+    with exit 2, Ctrl-C with exit 130, our warnings as one line each (other
+    libraries' warnings shown as usual), the process's warning hooks put
+    back after."""
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, VoxgiWarning):
             print(f"warning: {message}", file=sys.stderr)
-    warnings.showwarning = show_warning
-    try:
-        return args.func(args)
-    except VoxgiError as e:
-        print(f"error: {e.one_line()}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: nothing was written", file=sys.stderr)
-        return 130
-    except MemoryError:
-        print("error: out of memory (lower --resolution or --memory-budget)", file=sys.stderr)
-        return 2
+        else:
+            original(message, category, filename, lineno, file, line)
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        try:
+            return func(*args)
+        except VoxgiError as e:
+            print(f"error: {e.one_line()}", file=sys.stderr)
+            return 2
+        except MemoryError:
+            print("error: out of memory (lower --resolution or --memory-budget)", file=sys.stderr)
+            return 2
+        except BaseException as e:
+            if interrupted(e):
+                print("interrupted: nothing was written", file=sys.stderr)
+                return 130
+            raise
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    return run(args.func, args)

@@ -1,23 +1,31 @@
-"""Configuration as frozen dataclasses, and the presets preview/default/high."""
+"""Configuration as frozen dataclasses, the presets preview/default/high,
+and the worker-thread setting."""
 from __future__ import annotations
 
+import difflib
+from contextlib import contextmanager
 from dataclasses import dataclass, fields, replace
+
+from .errors import ConfigError
 
 
 @dataclass(frozen=True)
 class SolverConfig:
-    """Knobs of the voxel solver (METHOD.md sections 2-5).
+    """Knobs of the voxel solver (docs/design.md sections 2-5).
 
     resolution: cells along the scene's longest axis (ignored when
         cell_size > 0, which sets the cell size in scene units).
     radius: r of the first propagated bounce's direction set D_r
-        (|D_r| = 24 r^2 + 2).
+        (DirectionSet.n_directions of them).
     schedule: 'halving' (|D| about halved each bounce, floor r_min) or
-        'constant' (same r every bounce), METHOD.md section 3.
-    photons: photons shot from the emitters for the first bounce.
+        'constant' (same r every bounce), docs/design.md section 3.
+    photons: photons shot from the lights for the first bounce.
     tolerance: stop when the power of the newly arrived radiosity falls
         below tolerance times that of the first bounce.
     max_bounces: bounce cap (counting the photon bounce as 1).
+    seed: random seed (the same seed gives the same solution for any
+        thread count).
+    threads: worker threads (0: all cores).
     memory_budget_mb: refuse a voxelization estimated above this.
     """
     resolution: int = 64
@@ -34,16 +42,22 @@ class SolverConfig:
 
     def __post_init__(self):
         if self.schedule not in ("halving", "constant"):
-            raise ValueError(f"schedule must be 'halving' or 'constant', not {self.schedule!r}")
+            raise ConfigError(f"schedule must be 'halving' or 'constant', not {self.schedule!r}")
         if self.resolution < 1 and self.cell_size <= 0:
-            raise ValueError("resolution must be >= 1 (or give a cell size)")
+            raise ConfigError("resolution must be >= 1 (or give a cell size)")
+        if self.cell_size < 0:
+            raise ConfigError(f"cell size must be positive (got {self.cell_size})")
         if self.radius < 1 or self.r_min < 1:
-            raise ValueError("direction radius must be >= 1")
+            raise ConfigError("direction radius must be >= 1")
         if self.photons < 0 or self.max_bounces < 1 or self.tolerance < 0:
-            raise ValueError("photons >= 0, max_bounces >= 1 and tolerance >= 0 are required")
+            raise ConfigError("photons >= 0, max_bounces >= 1 and tolerance >= 0 are required")
+        if self.threads < 0:
+            raise ConfigError(f"threads must be >= 0 (0: all cores), not {self.threads}")
+        if self.memory_budget_mb <= 0:
+            raise ConfigError(f"memory budget must be positive (got {self.memory_budget_mb} MiB)")
 
     def radii(self) -> list:
-        """r_k of bounces 2, 3, ... (METHOD.md section 3): with 'halving',
+        """r_k of bounces 2, 3, ... (docs/design.md section 3): with 'halving',
         |D_{r_k}| ~ |D_{r_0}| / 2^k, i.e. r_k ~ r_0 / sqrt(2)^k, floor r_min."""
         out = []
         for k in range(self.max_bounces - 1):
@@ -62,9 +76,37 @@ PRESETS = {
 
 
 def solver_config(preset: str = "default", **overrides) -> SolverConfig:
-    """A preset with the given fields replaced (None values are ignored)."""
+    """A preset with the given fields replaced (None values are left at the
+    preset's). An unknown preset or field name raises ConfigError."""
     if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r}; choose from {', '.join(PRESETS)}")
-    names = {f.name for f in fields(SolverConfig)}
-    changes = {k: v for k, v in overrides.items() if v is not None and k in names}
-    return replace(PRESETS[preset], **changes)
+        raise ConfigError(f"unknown preset {preset!r}; choose from {', '.join(PRESETS)}")
+    names = [f.name for f in fields(SolverConfig)]
+    for key in overrides:
+        if key not in names:
+            near = difflib.get_close_matches(key, names, n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else f"; settings: {', '.join(names)}"
+            raise ConfigError(f"unknown solver setting {key!r}{hint}")
+    return replace(PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None})
+
+
+def check_threads(n) -> int:
+    """A thread count as given (0: all cores); ConfigError if negative."""
+    n = int(n or 0)
+    if n < 0:
+        raise ConfigError(f"--threads must be >= 0 (0: all cores), not {n}")
+    return n
+
+
+@contextmanager
+def threads(n: int = 0):
+    """numba's worker threads set to n (0: all) for the duration, then put
+    back: a library call never leaves the process's setting changed."""
+    import numba
+    n = check_threads(n)
+    before = numba.get_num_threads()
+    if n:
+        numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield numba.get_num_threads()
+    finally:
+        numba.set_num_threads(before)

@@ -1,4 +1,4 @@
-"""One exception family for everything the user can cause (STYLE.md: Errors).
+"""One exception family for everything the user can cause.
 
 The CLI catches `VoxgiError` and prints `error: <file>: <problem>` with exit
 status 2; anything else is a bug and keeps its traceback.
@@ -19,6 +19,10 @@ class VoxgiError(Exception):
 
 class SceneError(VoxgiError):
     """The scene file is missing, unreadable or holds invalid geometry."""
+
+
+class ConfigError(VoxgiError, ValueError):
+    """A setting is unknown or out of range (a ValueError as well)."""
 
 
 class BudgetError(VoxgiError):

@@ -61,12 +61,12 @@ class Stats:
         }
 
     def write(self, path):
-        from .images import _atomic
+        from .fileio import atomic_write
 
         def w(tmp):
             with open(tmp, "w") as f:
                 json.dump(self.as_dict(), f, indent=2, default=_jsonable)
-        _atomic(path, w)
+        atomic_write(path, w)
 
 
 def _jsonable(x):

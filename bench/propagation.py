@@ -22,9 +22,9 @@ import numpy as np
 
 from common import ROOT, emit
 from baker.config import solver_config
-from baker.directions import direction_set
-from baker.propagate import LineSweeper
-from baker.solver import solve
+from baker.solve.directions import direction_set
+from baker.solve.propagate import LineSweeper
+from baker.solve import solve
 from baker.scene import load_scene
 from baker.stats import release_freed_memory
 from baker.voxels import voxelize

@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from common import ROOT, emit
-from baker import bvh as bvh_mod
+from baker.scene import bvh as bvh_mod
 from baker.render import camera_array
 from baker.scene import load_scene
 

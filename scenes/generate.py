@@ -1,4 +1,4 @@
-"""Generates the built-in scenes (METHOD.md section 10) as .glb files.
+"""Generates the built-in scenes (docs/design.md section 10) as .glb files.
 
     python scenes/generate.py [--out scenes/]
 
@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from baker.gltf_write import GltfBuilder  # noqa: E402
+from baker.scene.gltf_write import GltfBuilder  # noqa: E402
 
 # ---------------------------------------------------------------------------
 # Geometry helpers: each returns (positions (n,3), triangles (m,3)).
@@ -245,7 +245,7 @@ def cornell_box(light_drop_mm=1.0):
 
 
 # ---------------------------------------------------------------------------
-# Test scenes (METHOD.md section 10).
+# Test scenes (docs/design.md section 10).
 
 
 def furnace_box(albedo=0.5, emission=1.0, subdiv=2, size=1.0):

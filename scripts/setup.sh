@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs everything voxgi needs on a fresh Debian/Ubuntu machine: the
 # Debian packages for headless OpenGL (EGL on Mesa llvmpipe, Xvfb for a real
-# window), a virtual environment in .venv and the Python packages.
+# window), a virtual environment in .venv with the package and its Python
+# dependencies, and the compiled kernels (numba caches them beside the code,
+# so the first real run does not spend 10-30 s compiling).
 # Idempotent: skips what is already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,6 +23,25 @@ fi
 if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv
 fi
-.venv/bin/python -m pip install -q --upgrade pip >/dev/null
-.venv/bin/python -m pip install -q -e ".[dev]"
+# reinstall only when the package's metadata changed (the code itself is installed editable)
+stamp=".venv/.voxgi-installed"
+want="$(sha256sum pyproject.toml | cut -d' ' -f1)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  echo "setup: installing the Python packages into .venv"
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  # setuptools warns on every editable install that a folder named like the package may shadow it:
+  # ours is the package itself
+  PYTHONWARNINGS="ignore:Editable installation" .venv/bin/python -m pip install -q -e ".[dev]"
+  echo "$want" > "$stamp"
+fi
+# compile (or load) the kernels of both render methods once, on a tiny image
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+echo "setup: compiling the kernels (once: later runs load them from numba's cache)"
+warm() {
+  .venv/bin/python -m baker render cornell_box --width 8 --height 8 "$@" >"$tmp/log" 2>&1 ||
+    { echo "setup: the warm-up render failed:"; cat "$tmp/log"; exit 1; }
+}
+warm --method voxels --preset preview --resolution 8 --photons 2000 -o "$tmp/w.png"
+warm --method pathtrace --spp 1 -o "$tmp/w.exr"
 echo "setup: ready ($(.venv/bin/python --version), venv in .venv)"

@@ -1,12 +1,30 @@
-"""Shared fixtures: scenes built on the fly from the generator, JIT warm-up."""
+"""Shared fixtures: scenes built on the fly from the generator; the thread
+pool sized for the thread-count tests (tests/threads.py)."""
 import os
 
-import numpy as np
-import pytest
+# numba reads its pool size once, at import: make room for more threads than
+# cores so that the thread-count tests can compare 1, 2, 3 and all even on a
+# one- or two-core machine (the other tests use the cores there are).
+os.environ.setdefault("NUMBA_NUM_THREADS", str(max(4, os.cpu_count() or 1)))
 
-from baker import bvh as bvh_mod
-from baker import surfaces
-from baker.scene import load_scene
+import warnings  # noqa: E402
+
+import numba  # noqa: E402
+import pytest  # noqa: E402
+
+from baker.errors import VoxgiWarning  # noqa: E402
+from baker.scene import load_scene  # noqa: E402
+
+numba.set_num_threads(min(os.cpu_count() or 1, numba.config.NUMBA_NUM_THREADS))
+
+
+@pytest.fixture(autouse=True)
+def quiet_voxgi_warnings():
+    """What the test scenes hold that the baker ignores is no news (tests that
+    check a warning catch it with pytest.warns)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=VoxgiWarning)
+        yield
 
 
 @pytest.fixture(scope="session")
@@ -32,12 +50,3 @@ def make_scene(scene_dir):
 def cornell():
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     return load_scene(os.path.join(here, "scenes", "cornell_box.glb"))
-
-
-@pytest.fixture(scope="session")
-def jit_warm(cornell):
-    """Compiles the ray kernels once per session (numba cache=True keeps them)."""
-    tree = bvh_mod.build_scene_bvh(cornell)
-    tree.closest(np.zeros((1, 3)), np.ones((1, 3)))
-    tree.occluded(np.zeros((1, 3)), np.ones((1, 3)))
-    return tree, surfaces.pack(cornell)

@@ -1,4 +1,4 @@
-"""Slow, obviously-correct references for the fast kernels (STYLE.md)."""
+"""Slow, obviously-correct references for the fast kernels."""
 import numpy as np
 
 
@@ -56,7 +56,7 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
                     kappa=1.0, trace=None, cut=None, sheet=None):
-    """Plain-Python linear propagation with the visibility rule of METHOD.md
+    """Plain-Python linear propagation with the visibility rule of docs/design.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
     +1 before -1) and runs the waiting-list rule along s and -s.

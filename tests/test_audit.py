@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from baker import bvh as bvh_mod
-from baker import surfaces
-from baker.audit import audit, discrete_sources
-from baker.directions import direction_set
-from baker.propagate import LineSweeper
+from baker.scene import bvh as bvh_mod
+from baker.scene import surfaces
+from baker.solve.audit import audit, discrete_sources
+from baker.solve.directions import direction_set
+from baker.solve.propagate import LineSweeper
 from baker.voxels import voxelize
 from scenes.generate import closed_box, furnace_box, furnace_obstacles, thin_wall, two_rooms
 from tests.naive import propagate_lines

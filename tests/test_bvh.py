@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from baker import bvh as bvh_mod
+from baker.scene import bvh as bvh_mod
 from tests.naive import ray_triangles
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from baker.config import SolverConfig
-from baker.directions import canonical, cube_directions, direction_set, quadrature_cosine
+from baker.solve.directions import canonical, cube_directions, direction_set, quadrature_cosine
 
 
 @pytest.mark.parametrize("r", [1, 2, 3, 4, 8, 16])

@@ -1,12 +1,12 @@
-import numba
 import numpy as np
 import pytest
 
-from baker import bvh as bvh_mod
-from baker import surfaces
-from baker.pathtrace import radiance_batch, render_pathtrace
+from baker.scene import bvh as bvh_mod
+from baker.scene import surfaces
+from baker.render.pathtrace import radiance_batch, render_pathtrace
 from baker.render import camera_array
 from scenes.generate import emission_test, furnace_box, GltfBuilder, quad
+from tests.threads import same_for_any_thread_count
 from tests.naive import irradiance_under_rectangle
 
 
@@ -79,14 +79,6 @@ def test_point_light_and_back_faces(tmp_path):
 def test_same_image_for_any_thread_count(cornell):
     tree, surf = prepare(cornell)
     cam = camera_array(cornell.camera(), 24, 24)
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        a = render_pathtrace(tree, surf, cam, 24, 24, 8, seed=9)
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        b = render_pathtrace(tree, surf, cam, 24, 24, 8, seed=9)
-    finally:
-        numba.set_num_threads(before)
-    assert np.array_equal(a, b)
+    a = same_for_any_thread_count(lambda: render_pathtrace(tree, surf, cam, 24, 24, 8, seed=9))
     c = render_pathtrace(tree, surf, cam, 24, 24, 8, seed=10)
     assert not np.array_equal(a, c)  # the seed matters, so the equality above means something

@@ -1,12 +1,12 @@
-import numba
 import numpy as np
 import pytest
 
-from baker.directions import direction_set
-from baker.propagate import LineSweeper
+from baker.solve.directions import direction_set
+from baker.solve.propagate import LineSweeper
 from baker.voxels import voxelize
-from baker.gltf_write import GltfBuilder
+from baker.scene.gltf_write import GltfBuilder
 from scenes.generate import box, closed_box, cornell_box, furnace_box, furnace_obstacles, quad, thin_wall, two_rooms
+from tests.threads import same_for_any_thread_count
 from tests.naive import propagate_lines
 
 
@@ -102,16 +102,8 @@ def test_same_result_for_any_thread_count(make_scene):
     d = direction_set(4)
     sw = LineSweeper(v)
     radiosity = np.random.default_rng(3).random((len(v), 3))
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        a = sw.gather(radiosity, d, sw.offsets(d, 0, 2))
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        b = sw.gather(radiosity, d, sw.offsets(d, 0, 2))
-    finally:
-        numba.set_num_threads(before)
-    np.testing.assert_array_equal(a[0], b[0])
-    np.testing.assert_array_equal(a[1], b[1])
+    g, s = same_for_any_thread_count(lambda: sw.gather(radiosity, d, sw.offsets(d, 0, 2)))
+    assert (g > 0).any() and (s > 0).all()
 
 
 def test_offsets_are_seeded_and_in_range():

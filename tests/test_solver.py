@@ -1,16 +1,16 @@
-"""The voxel solver against METHOD.md section 10's exact answers."""
+"""The voxel solver against docs/design.md section 10's exact answers."""
 import json
 import subprocess
 import sys
 
-import numba
 import numpy as np
 import pytest
 
 from baker.config import solver_config
-from baker.solver import solve
-from baker.gltf_write import GltfBuilder
+from baker.solve import solve
+from baker.scene.gltf_write import GltfBuilder
 from scenes.generate import closed_box, emission_test, furnace_box, furnace_sphere, icosphere, thin_wall, two_rooms
+from tests.threads import same_for_any_thread_count
 from tests.naive import irradiance_under_rectangle
 
 
@@ -38,7 +38,7 @@ def test_furnace_sphere(make_scene, rho):
     sol = solve(scene, solver_config("default", resolution=24, photons=4_000_000, radius=6, tolerance=1e-5))
     b = sol.radiosity[:, 0] * (1 - rho)
     # measured: mean 0.9996 / 0.9990, min 0.975 / 0.983 (propagation alone loses at most 2.4% of
-    # one bounce in tiny corner pieces whose lines leave the shell, METHOD.md section 4)
+    # one bounce in tiny corner pieces whose lines leave the shell, docs/design.md section 4)
     assert abs(area_mean(sol, b) - 1) < 0.01
     assert b.min() > 0.97 and b.max() < 1.03
 
@@ -191,7 +191,7 @@ def test_double_sided_furnace_sphere(make_scene, rho):
 def test_wall_anywhere_in_a_cell(make_scene, frac, shared):
     """A one-sided wall at any position inside a cell, between two floors or
     on one floor running under it: the surface crossing the cell cuts the
-    pieces there and the propagation blocks across it (METHOD.md section 4,
+    pieces there and the propagation blocks across it (docs/design.md section 4,
     straddling voxels). Measured exactly 0 at 24, 32 and 40 cells for walls
     0.05-0.95 into a cell, separate or shared floors."""
     h = 2 / 32
@@ -219,17 +219,17 @@ def test_no_emitter_is_black_and_says_so(tmp_path):
 
 def test_same_solution_for_any_thread_count(cornell):
     config = solver_config("preview", resolution=16, photons=100_000, radius=3)
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        a = solve(cornell, config)
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        b = solve(cornell, config)
-    finally:
-        numba.set_num_threads(before)
-    np.testing.assert_array_equal(a.radiosity, b.radiosity)
+    a = same_for_any_thread_count(lambda: solve(cornell, config).radiosity)
     c = solve(cornell, solver_config("preview", resolution=16, photons=100_000, radius=3, seed=1))
-    assert not np.array_equal(a.radiosity, c.radiosity)
+    assert not np.array_equal(a, c.radiosity)
+
+
+def test_solve_restores_the_thread_setting(cornell):
+    """A library call with its own thread count puts the process's back."""
+    import numba
+    before = numba.get_num_threads()
+    solve(cornell, solver_config("preview", resolution=8, photons=10_000, radius=2, threads=1))
+    assert numba.get_num_threads() == before
 
 
 def test_cli_voxel_view_and_stats(tmp_path):
@@ -297,7 +297,7 @@ def test_sun_through_a_window_is_guided_and_unbiased(tmp_path, monkeypatch):
     deposit that power (unbiased), land far more often than photons spread
     over the sun's whole disc, and light the floor patch under the window
     with H_1 = E cos(theta)."""
-    import baker.photons as photons
+    from baker.solve import photons
     from baker.scene import load_scene
     from scenes.generate import GltfBuilder, box, merge, quad
     b = GltfBuilder()
@@ -346,10 +346,10 @@ def test_cornell_voxel_view_agrees_with_path_tracer(cornell):
     the lamp (edge pixels mix surfaces differently: the path tracer averages
     over the pixel, the voxel view takes its centre): bound 10% (path tracer
     noise per region < 1%)."""
-    from baker import bvh as bvh_mod, surfaces
-    from baker.pathtrace import render_pathtrace
+    from baker.scene import bvh as bvh_mod, surfaces
+    from baker.render.pathtrace import render_pathtrace
     from baker.render import camera_array
-    from baker.voxelview import render_voxels
+    from baker.render.voxelview import render_voxels
     tree, surf = bvh_mod.build_scene_bvh(cornell), surfaces.pack(cornell)
     cam = camera_array(cornell.camera(), 64, 64)
     pt = render_pathtrace(tree, surf, cam, 64, 64, 512, seed=1)

@@ -3,8 +3,8 @@ import pytest
 from hypothesis import example, given, settings, strategies as st
 
 from baker.errors import BudgetError
-from baker.propagate import LineSweeper
-from baker.directions import direction_set
+from baker.solve.propagate import LineSweeper
+from baker.solve.directions import direction_set
 from baker.scene import load_scene
 from baker.voxels import estimate, voxelize
 from scenes.generate import GltfBuilder, box, furnace_box, quad

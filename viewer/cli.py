@@ -7,9 +7,8 @@ the viewer's snapshots.
 from __future__ import annotations
 
 import argparse
-import sys
 
-from baker.errors import VoxgiError
+from baker.cli import run
 
 
 def cmd_glinfo(args):
@@ -41,8 +40,4 @@ def build_parser():
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except VoxgiError as e:
-        print(f"error: {e.one_line()}", file=sys.stderr)
-        return 2
+    return run(args.func, args)

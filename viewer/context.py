@@ -1,5 +1,5 @@
 """A standalone (windowless) moderngl context through EGL: Mesa llvmpipe on
-machines without a GPU. Never imports glfw (METHOD.md section 9)."""
+machines without a GPU. Never imports glfw (docs/design.md section 9)."""
 from __future__ import annotations
 
 from baker.errors import GLError

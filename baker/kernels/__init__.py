@@ -1,1 +1,2 @@
-"""numba kernels: flat arrays in and out, no I/O, no classes (STYLE.md)."""
+"""Shared numba primitives (no stage logic): random numbers, sampling, BVH
+build and traversal, prefetch. Flat arrays in and out, no I/O, no classes."""

@@ -3,9 +3,19 @@
 Layout (depth-first): node i's left child is i + 1, its right child is
 `right[i]`; a leaf has count[i] > 0 and holds triangles first[i] ..
 first[i] + count[i] - 1 of the reordered triangle arrays. Triangles are
-stored reordered as their corners (v0, v1, v2) in float64, with
-`tri_index` mapping back to the scene's triangle numbers.
+stored reordered as their corners (v0, v1, v2), with `tri_index` mapping
+back to the scene's triangle numbers. `BVHArrays` is what the traversal
+kernels take.
+
+Depth: the traversal keeps at most one pending node per level on a fixed
+stack of STACK_SIZE entries, so the tree must stay shallower. Binned SAH
+can peel a few triangles per level off a degenerate input (sizes or
+positions in a geometric progression: 16 bins over a range that shrinks
+16-fold per level), so below MAX_SAH_DEPTH levels the build splits at the
+median instead, which adds at most log2(triangles) < 32 levels.
 """
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -13,6 +23,18 @@ N_BINS = 16
 LEAF_MAX = 4
 COST_TRAVERSE = 1.0
 COST_INTERSECT = 1.0
+STACK_SIZE = 128      # traversal stack entries (int32), one per level at most
+MAX_SAH_DEPTH = 64    # deeper nodes split at the median: depth < MAX_SAH_DEPTH + 32 <= STACK_SIZE
+
+BVHArrays = namedtuple("BVHArrays", [
+    "child_box",   # (nn, 12) float32 boxes (lo xyz, hi xyz) of the left then the right child of an inner node
+    "root_box",    # (6,) float64
+    "right",       # (nn,) int32 right child (the left child of node i is i + 1)
+    "first",       # (nn,) int32 first triangle of a leaf
+    "count",       # (nn,) int32 triangles in a leaf (0: inner node)
+    "tris",        # (nt, 9) float32 corners v0 v1 v2 in BVH order
+    "tri_index",   # (nt,) int32 BVH order -> scene triangle
+])
 
 
 @njit(cache=True)
@@ -23,11 +45,14 @@ def _surface(lo, hi):
 
 @njit(cache=True)
 def build_bvh(corners, leaf_max):
-    """corners (nt, 3, 3) float64 -> (lo, hi, right, first, count, order).
+    """corners (nt, 3, 3) float64 -> (lo, hi, right, first, count, order, depth).
 
     Binned SAH (Wald 2007): 16 bins on each axis of the centroid bounds; a
     node becomes a leaf when no split beats intersecting all its triangles
     and it holds at most 4 * leaf_max, or when it holds at most leaf_max.
+    Nodes at depth MAX_SAH_DEPTH or more split at the median of their
+    centroids along the widest axis. depth: the deepest node's level
+    (root 0).
     """
     nt = corners.shape[0]
     cen = np.empty((nt, 3))
@@ -46,14 +71,15 @@ def build_bvh(corners, leaf_max):
     right = np.full(max_nodes, -1, np.int32)
     first = np.zeros(max_nodes, np.int32)
     count = np.zeros(max_nodes, np.int32)
-    # task stack: start, end, parent, is_right
+    # task stack: start, end, parent, is_right, depth
     st_start = np.empty(128, np.int64)
     st_end = np.empty(128, np.int64)
     st_parent = np.empty(128, np.int64)
     st_right = np.empty(128, np.int64)
-    sp = 0
-    st_start[0], st_end[0], st_parent[0], st_right[0] = 0, nt, -1, 0
+    st_depth = np.empty(128, np.int64)
+    st_start[0], st_end[0], st_parent[0], st_right[0], st_depth[0] = 0, nt, -1, 0, 0
     sp = 1
+    max_depth = 0
     n_nodes = 0
     bin_lo = np.empty((N_BINS, 3))
     bin_hi = np.empty((N_BINS, 3))
@@ -62,7 +88,8 @@ def build_bvh(corners, leaf_max):
     left_n = np.empty(N_BINS, np.int64)
     while sp > 0:
         sp -= 1
-        start, end, parent, is_right = st_start[sp], st_end[sp], st_parent[sp], st_right[sp]
+        start, end, parent, is_right, depth = st_start[sp], st_end[sp], st_parent[sp], st_right[sp], st_depth[sp]
+        max_depth = max(max_depth, depth)
         node = n_nodes
         n_nodes += 1
         if is_right:
@@ -83,79 +110,111 @@ def build_bvh(corners, leaf_max):
         if n <= leaf_max:
             first[node], count[node] = start, n
             continue
-        best_cost, best_axis, best_bin = np.inf, -1, -1
-        for axis in range(3):
-            ext = chi[axis] - clo[axis]
-            if ext <= 0.0:
-                continue
-            scale = N_BINS / ext
-            for b in range(N_BINS):
-                bin_n[b] = 0
-                for k in range(3):
-                    bin_lo[b, k] = np.inf
-                    bin_hi[b, k] = -np.inf
-            for j in range(start, end):
-                t = order[j]
-                b = min(int((cen[t, axis] - clo[axis]) * scale), N_BINS - 1)
-                bin_n[b] += 1
-                for k in range(3):
-                    bin_lo[b, k] = min(bin_lo[b, k], tlo[t, k])
-                    bin_hi[b, k] = max(bin_hi[b, k], thi[t, k])
-            alo = np.full(3, np.inf)
-            ahi = np.full(3, -np.inf)
-            cnt = 0
-            for b in range(N_BINS - 1):
-                cnt += bin_n[b]
-                for k in range(3):
-                    alo[k] = min(alo[k], bin_lo[b, k])
-                    ahi[k] = max(ahi[k], bin_hi[b, k])
-                left_n[b] = cnt
-                left_area[b] = _surface(alo, ahi) if cnt > 0 else 0.0
-            alo[:] = np.inf
-            ahi[:] = -np.inf
-            cnt = 0
-            for b in range(N_BINS - 1, 0, -1):
-                cnt += bin_n[b]
-                for k in range(3):
-                    alo[k] = min(alo[k], bin_lo[b, k])
-                    ahi[k] = max(ahi[k], bin_hi[b, k])
-                ra = _surface(alo, ahi) if cnt > 0 else 0.0
-                cost = left_area[b - 1] * left_n[b - 1] + ra * cnt
-                if left_n[b - 1] > 0 and cnt > 0 and cost < best_cost:
-                    best_cost, best_axis, best_bin = cost, axis, b
-        area = _surface(lo[node], hi[node])
-        leaf_cost = COST_INTERSECT * n
-        split_cost = COST_TRAVERSE + COST_INTERSECT * best_cost / area if area > 0 else np.inf
-        if best_axis < 0 or (split_cost >= leaf_cost and n <= 4 * leaf_max):
-            if best_axis < 0 and n > leaf_max:
-                mid = start + n // 2  # all centroids equal: split by count
-            else:
+        if depth >= MAX_SAH_DEPTH:
+            mid = _median_split(order, cen, start, end, clo, chi)
+        else:
+            mid = _sah_split(order, cen, tlo, thi, start, end, clo, chi, lo[node], hi[node], leaf_max, bin_lo,
+                             bin_hi, bin_n, left_area, left_n)
+            if mid < 0:
                 first[node], count[node] = start, n
                 continue
-        else:
-            scale = N_BINS / (chi[best_axis] - clo[best_axis])
-            i, j = start, end - 1
-            while i <= j:
-                b = min(int((cen[order[i], best_axis] - clo[best_axis]) * scale), N_BINS - 1)
-                if b < best_bin:
-                    i += 1
-                else:
-                    order[i], order[j] = order[j], order[i]
-                    j -= 1
-            mid = i
         if sp + 2 > st_start.shape[0]:
             grow = st_start.shape[0] * 2
             st_start = np.concatenate((st_start, np.empty(grow, np.int64)))
             st_end = np.concatenate((st_end, np.empty(grow, np.int64)))
             st_parent = np.concatenate((st_parent, np.empty(grow, np.int64)))
             st_right = np.concatenate((st_right, np.empty(grow, np.int64)))
+            st_depth = np.concatenate((st_depth, np.empty(grow, np.int64)))
         # push right first so the left child is built next (index node + 1)
-        st_start[sp], st_end[sp], st_parent[sp], st_right[sp] = mid, end, node, 1
+        st_start[sp], st_end[sp], st_parent[sp], st_right[sp], st_depth[sp] = mid, end, node, 1, depth + 1
         sp += 1
-        st_start[sp], st_end[sp], st_parent[sp], st_right[sp] = start, mid, node, 0
+        st_start[sp], st_end[sp], st_parent[sp], st_right[sp], st_depth[sp] = start, mid, node, 0, depth + 1
         sp += 1
     return lo[:n_nodes].copy(), hi[:n_nodes].copy(), right[:n_nodes].copy(), first[:n_nodes].copy(), \
-        count[:n_nodes].copy(), order
+        count[:n_nodes].copy(), order, max_depth
+
+
+@njit(cache=True)
+def _median_split(order, cen, start, end, clo, chi):
+    """Sorts order[start:end] by centroid along the widest centroid axis and
+    returns the middle."""
+    axis = 0
+    for k in range(1, 3):
+        if chi[k] - clo[k] > chi[axis] - clo[axis]:
+            axis = k
+    seg = order[start:end].copy()
+    keys = np.empty(end - start)
+    for j in range(end - start):
+        keys[j] = cen[seg[j], axis]
+    perm = np.argsort(keys, kind="mergesort")
+    for j in range(end - start):
+        order[start + j] = seg[perm[j]]
+    return start + (end - start) // 2
+
+
+@njit(cache=True)
+def _sah_split(order, cen, tlo, thi, start, end, clo, chi, nlo, nhi, leaf_max, bin_lo, bin_hi, bin_n, left_area,
+               left_n):
+    """Partitions order[start:end] at the best binned SAH split and returns
+    the split point, or -1 when the node should be a leaf."""
+    n = end - start
+    best_cost, best_axis, best_bin = np.inf, -1, -1
+    for axis in range(3):
+        ext = chi[axis] - clo[axis]
+        if ext <= 0.0:
+            continue
+        scale = N_BINS / ext
+        for b in range(N_BINS):
+            bin_n[b] = 0
+            for k in range(3):
+                bin_lo[b, k] = np.inf
+                bin_hi[b, k] = -np.inf
+        for j in range(start, end):
+            t = order[j]
+            b = min(int((cen[t, axis] - clo[axis]) * scale), N_BINS - 1)
+            bin_n[b] += 1
+            for k in range(3):
+                bin_lo[b, k] = min(bin_lo[b, k], tlo[t, k])
+                bin_hi[b, k] = max(bin_hi[b, k], thi[t, k])
+        alo = np.full(3, np.inf)
+        ahi = np.full(3, -np.inf)
+        cnt = 0
+        for b in range(N_BINS - 1):
+            cnt += bin_n[b]
+            for k in range(3):
+                alo[k] = min(alo[k], bin_lo[b, k])
+                ahi[k] = max(ahi[k], bin_hi[b, k])
+            left_n[b] = cnt
+            left_area[b] = _surface(alo, ahi) if cnt > 0 else 0.0
+        alo[:] = np.inf
+        ahi[:] = -np.inf
+        cnt = 0
+        for b in range(N_BINS - 1, 0, -1):
+            cnt += bin_n[b]
+            for k in range(3):
+                alo[k] = min(alo[k], bin_lo[b, k])
+                ahi[k] = max(ahi[k], bin_hi[b, k])
+            ra = _surface(alo, ahi) if cnt > 0 else 0.0
+            cost = left_area[b - 1] * left_n[b - 1] + ra * cnt
+            if left_n[b - 1] > 0 and cnt > 0 and cost < best_cost:
+                best_cost, best_axis, best_bin = cost, axis, b
+    area = _surface(nlo, nhi)
+    leaf_cost = COST_INTERSECT * n
+    split_cost = COST_TRAVERSE + COST_INTERSECT * best_cost / area if area > 0 else np.inf
+    if best_axis < 0 or (split_cost >= leaf_cost and n <= 4 * leaf_max):
+        if best_axis < 0 and n > leaf_max:
+            return start + n // 2  # all centroids equal: split by count
+        return -1
+    scale = N_BINS / (chi[best_axis] - clo[best_axis])
+    i, j = start, end - 1
+    while i <= j:
+        b = min(int((cen[order[i], best_axis] - clo[best_axis]) * scale), N_BINS - 1)
+        if b < best_bin:
+            i += 1
+        else:
+            order[i], order[j] = order[j], order[i]
+            j -= 1
+    return i
 
 
 @njit(cache=True)

@@ -1,20 +1,16 @@
 """Ray queries on the BVH of `bvh.py`: closest hit and any hit (shadow rays).
 
-`bvh` is the tuple `baker.bvh.BVH.arrays`:
-  0 child_box (nn, 12) float32  boxes of the left then right child of an inner node
-  1 root_box (6,) float64       2 right (nn,) int32   3 first (nn,) int32
-  4 count (nn,) int32           5 tris (nt, 9) float32 corners v0 v1 v2
-  6 tri_index (nt,) int32       BVH order -> scene triangle
-Both children are tested from the parent's one cache line; the nearer is
-visited first. The scalar queries take a caller-owned `stack` (int32, 128)
-so that nothing is allocated per ray. Triangles are hit from both sides
-(watertight test, float64 arithmetic); the caller decides what the back
-side means.
+`bvh` is a `BVHArrays` (kernels/bvh.py). Both children are tested from the
+parent's one cache line; the nearer is visited first. The scalar queries
+take a caller-owned `stack` (int32, STACK_SIZE: the build keeps the tree
+shallower, kernels/bvh.py) so that nothing is allocated per ray. Triangles
+are hit from both sides (watertight test, float64 arithmetic); the caller
+decides what the back side means.
 """
 import numpy as np
 from numba import njit, prange
 
-STACK_SIZE = 128
+from .bvh import STACK_SIZE
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -89,7 +85,7 @@ def intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz):
 def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
     """First hit with t in (tmin, tmax): (t, bvh-order triangle j, u, v);
     j = -1 and t = inf on a miss."""
-    cb, root, right, first, count, tris = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5]
+    cb, root, right, first, count, tris = bvh.child_box, bvh.root_box, bvh.right, bvh.first, bvh.count, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
     o = (ox, oy, oz)
@@ -133,7 +129,7 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
 @njit(cache=True, error_model="numpy")
 def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
     """True if anything is hit with t in (tmin, tmax)."""
-    cb, root, right, first, count, tris = bvh[0], bvh[1], bvh[2], bvh[3], bvh[4], bvh[5]
+    cb, root, right, first, count, tris = bvh.child_box, bvh.root_box, bvh.right, bvh.first, bvh.count, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
     o = (ox, oy, oz)
@@ -173,7 +169,7 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
 @njit(cache=True, inline="always", error_model="numpy")
 def hit_normal(bvh, j):
     """Unit geometric normal (winding order) of BVH-order triangle j."""
-    tr = bvh[5]
+    tr = bvh.tris
     ax, ay, az = tr[j, 3] - tr[j, 0], tr[j, 4] - tr[j, 1], tr[j, 5] - tr[j, 2]
     bx, by, bz = tr[j, 6] - tr[j, 0], tr[j, 7] - tr[j, 1], tr[j, 8] - tr[j, 2]
     nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
@@ -193,7 +189,7 @@ def closest_hit_batch(bvh, origins, dirs, tmin, tmax):
     tri = np.empty(n, np.int32)
     u_out = np.empty(n)
     v_out = np.empty(n)
-    index = bvh[6]
+    index = bvh.tri_index
     for c in prange((n + _CHUNK - 1) // _CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
         for i in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):

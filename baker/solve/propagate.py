@@ -1,8 +1,8 @@
-"""Linear propagation of radiosity over a voxel set (METHOD.md section 4).
+"""Linear propagation of radiosity over a voxel set (docs/design.md section 4).
 
-`LineSweeper` precomputes what every bounce reuses (the three axis-major
-orders, the cell boundaries in each, the table size); `gather` runs one
-bounce over a direction set:
+`LineSweeper` precomputes what every bounce reuses (the voxel rows, the
+cut table, the three axis-major orders, the cell boundaries in each, the
+table size); `gather` runs one bounce over a direction set:
 
     H(x) = (1 / S(n_x)) sum_{s in D, n_x.s > 0} (B(I(x, s)) / pi) (n_x.s) dW(s)
 """
@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import BudgetError
+from ..kernels.rng import LINE_OFFSET_BOUNCE_STRIDE, STREAM_LINE_OFFSETS, rand01
 from .directions import DirectionSet
-from .errors import BudgetError
-from .kernels.propagate import HIT_BATCH, propagate_families
-from .kernels.rng import rand01
+from .records import (C_CX, C_CZ, C_D, C_NX, C_NZ, CUT, LINE, MAX_CUT_ROWS, P_CUT, P_NX, P_NZ, P_SHEET, P_X, P_Z,
+                      POS)
+from .sweep import HIT_BATCH, propagate_families
 
-TAU = 0.1     # METHOD.md section 4: plane tolerance, in cells
+TAU = 0.1     # plane tolerance, in cells (docs/design.md section 4)
 KAPPA = 1.0   # convex-edge reach, in cells
 
 
@@ -25,28 +27,24 @@ class LineSweeper:
         n = len(cell)
         self.n = n
         self.cell = cell
-        # what the sweep reads per voxel, lengths in cells (pos: see kernels/propagate.py):
-        # the centroid in grid coordinates and the normal, float32 (1e-7 of the grid's
-        # extent: tau is 0.1 cell), the side of a cutting plane and that plane's row (not
-        # cut: 1 for a face of a two-sided sheet, else 0)
         self.h = float(voxels.cell_size)
         self.origin = np.ascontiguousarray(voxels.origin, np.float64)
-        pos = np.zeros((n, 8), np.float32)
-        pos[:, :3] = (voxels.centroid - voxels.origin) / voxels.cell_size
-        pos[:, 3:6] = voxels.normal
+        # the voxel rows the sweep reads (records.py), lengths in cells
+        pos = np.zeros((n, POS), np.float32)
+        pos[:, P_X:P_Z + 1] = (voxels.centroid - voxels.origin) / voxels.cell_size
+        pos[:, P_NX:P_NZ + 1] = voxels.normal
+        pos[:, P_SHEET] = np.asarray(voxels.two_sided, bool)
         cut = np.nonzero(voxels.cut_sign != 0)[0]
-        if len(cut) >= 2 ** 24:
-            raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of 2^24; lower the resolution")
-        sheet = np.asarray(voxels.two_sided, bool)
-        pos[:, 7] = sheet
-        pos[cut, 6] = voxels.cut_sign[cut]
-        pos[cut, 7] = np.arange(len(cut))
-        # the cutting planes in absolute grid coordinates (n . g = offset), the cut voxels'
-        # cells, and whether they are a sheet's face
-        plane = voxels.cut_plane[cut].astype(np.float64)
-        plane[:, 3] += (plane[:, :3] * cell[cut]).sum(axis=1)
-        self.cutp = np.ascontiguousarray(np.concatenate([plane, cell[cut].astype(np.float64),
-                                                         sheet[cut, None].astype(np.float64)], axis=1))
+        if len(cut) > MAX_CUT_ROWS:
+            raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of {MAX_CUT_ROWS}; lower the "
+                              f"resolution")
+        pos[cut, P_CUT] = voxels.cut_sign[cut] * (np.arange(len(cut)) + 1.0)
+        # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells
+        cutp = np.zeros((len(cut), CUT))
+        cutp[:, C_NX:C_D + 1] = voxels.cut_plane[cut].astype(np.float64)
+        cutp[:, C_D] += (cutp[:, C_NX:C_NZ + 1] * cell[cut]).sum(axis=1)
+        cutp[:, C_CX:C_CZ + 1] = cell[cut]
+        self.cutp = cutp
         self._cut_rows = cut
         self.pos = pos
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
@@ -75,7 +73,7 @@ class LineSweeper:
     @property
     def normal(self) -> np.ndarray:
         """(n, 3) float32 normals, as the kernel sees them."""
-        return self.pos[:, 3:6]
+        return self.pos[:, P_NX:P_NZ + 1]
 
     @property
     def cut(self) -> np.ndarray:
@@ -83,21 +81,19 @@ class LineSweeper:
         coordinates) of a surface that cut its pieces and its side of it (0:
         not cut), as the kernel sees them."""
         out = np.zeros((self.n, 5))
-        out[self._cut_rows, :4] = self.cutp[:, :4]
-        out[:, 4] = self.pos[:, 6]
+        out[self._cut_rows, :4] = self.cutp[:, C_NX:C_D + 1]
+        out[:, 4] = np.sign(self.pos[:, P_CUT])
         return out
 
     @property
     def sheet(self) -> np.ndarray:
         """(n,) bool: faces of two-sided sheets, as the kernel sees them."""
-        out = self.pos[:, 7] != 0
-        out[self._cut_rows] = self.cutp[:, 7] != 0
-        return out
+        return self.pos[:, P_SHEET] != 0
 
     @property
     def centroid(self) -> np.ndarray:
         """(n, 3) float64 centroids in grid coordinates, as the kernel sees them."""
-        return self.pos[:, :3].astype(np.float64)
+        return self.pos[:, P_X:P_Z + 1].astype(np.float64)
 
     def line_table(self, dirs: DirectionSet):
         """(size, hashed): a dense line table as large as the largest family's
@@ -125,9 +121,9 @@ class LineSweeper:
         """Working memory of a bounce beyond the voxel arrays (the line
         tables at their largest; waiting records not counted: only the live
         ones are touched, a few per cent of the voxels)."""
-        per_voxel = 32 + 4 * HIT_BATCH + 24 + 8  # axis copy, hits, the outputs (gathered sums, S)
+        per_voxel = 4 * POS + 4 * HIT_BATCH + 24 + 8  # axis copy, hits, the outputs (gathered sums, S)
         return self.orders.nbytes + self.starts.nbytes + self.pos.nbytes + self.cutp.nbytes + \
-            (12 + 2 * 4) * self.starts.shape[1] + 2 * 16 * self.table_size + self.n * per_voxel  # cells, line ids
+            (12 + 2 * 4) * self.starts.shape[1] + 2 * 4 * LINE * self.table_size + self.n * per_voxel  # cells, ids
 
     def offsets(self, dirs: DirectionSet, seed: int, bounce: int) -> np.ndarray:
         """Seeded line offsets (mu, mu') in [0, A) per family, so that the
@@ -136,7 +132,7 @@ class LineSweeper:
         out = np.empty((dirs.n_families, 2), np.int64)
         for f in range(dirs.n_families):
             for j in range(2):
-                out[f, j] = int(rand01(seed, bounce * 1_000_003 + f, 7 + j) * a[f]) % a[f]
+                out[f, j] = int(rand01(seed, bounce * LINE_OFFSET_BOUNCE_STRIDE + f, STREAM_LINE_OFFSETS + j) * a[f]) % a[f]
         return out
 
     def gather(self, radiosity, dirs: DirectionSet, offsets):

@@ -1,4 +1,4 @@
-"""The cache method (METHOD.md section 5): photons -> bounces -> solution.
+"""The cache method (docs/design.md section 5): photons -> bounces -> solution.
 
     current = B_1 = rho H_1;  H = H_1
     for k = 2, 3, ...:  H_k = propagate(current, D_{r_k});  H += H_k;  current = rho H_k
@@ -11,19 +11,20 @@ outgoing radiosity is B = E + rho H.
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bvh as bvh_mod
-from . import surfaces as surf_mod
-from .config import SolverConfig
+from ..config import SolverConfig, threads
+from ..progress import bar
+from ..scene.bvh import build_scene_bvh
+from ..scene.surfaces import pack
+from ..stats import Stats, release_freed_memory
+from ..voxels import Voxels, voxelize
+from ..voxels.lookup import pool_parents
 from .directions import direction_set
 from .photons import shoot_photons
 from .propagate import LineSweeper
-from .stats import Stats, release_freed_memory
-from .voxels import Voxels, voxelize
 
 
 @dataclass(frozen=True)
@@ -57,7 +58,7 @@ class Solution:
         i = self.info
         return (f"voxels {len(self.voxels)} (cell {self.voxels.cell_size:.4g})  photons {i.get('photons', 0)} "
                 f"({i.get('photons_landed', 0)} landed)  bounces {self.bounces} (stopped: {self.stop_reason})  "
-                f"directions/bounce {[24 * r * r + 2 for r in self.radii]}  "
+                f"directions/bounce {i.get('directions_per_bounce', [])}  "
                 f"discrete rays {i.get('discrete_rays', 0):.4g}")
 
 
@@ -69,7 +70,6 @@ def first_bounce_irradiance(vox, deposited):
     takes the pooled estimate (P + P_parent) / (A + A_parent) of itself and
     its largest neighbour on the same surface (photon noise scales as
     1 / sqrt(area): slivers would be spikes)."""
-    from .kernels.lookup import pool_parents
     h1 = deposited / vox.area[:, None]
     parent = pool_parents(vox.key, vox.facing, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
                           vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2, vox.cut_plane, vox.cut_sign, vox.origin)
@@ -82,20 +82,24 @@ def first_bounce_irradiance(vox, deposited):
 
 def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, surfaces=None, progress=False,
           keep_bounces=False) -> Solution:
-    """Scene -> Solution by photons and linear propagation (the cache method)."""
-    import numba
-    if config.threads:
-        numba.set_num_threads(max(1, min(config.threads, numba.config.NUMBA_NUM_THREADS)))
-    stats = stats or Stats("solve")
+    """Scene -> Solution by photons and linear propagation (the cache
+    method), with config.threads worker threads (the process's setting is
+    put back after)."""
+    with threads(config.threads):
+        return _solve(scene, config, stats or Stats("solve"), bvh, surfaces, progress, keep_bounces)
+
+
+def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     with stats.stage("bvh"):
-        bvh = bvh or bvh_mod.build_scene_bvh(scene)
-        surfaces = surfaces or surf_mod.pack(scene)
+        bvh = bvh or build_scene_bvh(scene)
+        surfaces = surfaces or pack(scene)
     with stats.stage("voxelize"):
         vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surfaces)
         release_freed_memory()
     n = len(vox)
-    with stats.stage("photons"):
-        dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed)
+    with stats.stage("photons"), bar(config.photons, "photons", "photon", progress) as pbar:
+        dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed,
+                                                   pbar.update)
         release_freed_memory()
     area = vox.area[:, None]
     h1 = first_bounce_irradiance(vox, dep)
@@ -108,45 +112,38 @@ def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, sur
     del h1
     p1 = float((current * area).sum())
     bounce_power = [p1]
-    radii_used = []
+    radii_used, directions = [], []
     rays = 0
     stop = "no light reached a surface" if p1 <= 0 else f"bounce cap ({config.max_bounces})"
     if p1 > 0 and config.max_bounces > 1:
-        with stats.stage("propagation"):
+        radii = config.radii()
+        with stats.stage("propagation"), bar(len(radii), "bounces", "bounce", progress) as bbar:
             sweeper = LineSweeper(vox)
             release_freed_memory()
             cache = {}
-            radii = config.radii()
-            bar = None
-            if progress:
-                from tqdm import tqdm
-                bar = tqdm(total=len(radii), desc="bounces", unit="bounce", leave=False, file=sys.stderr,
-                           disable=None)
             for k, r in enumerate(radii, start=2):
                 dirs = cache.get(r) or cache.setdefault(r, direction_set(r))
                 hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k))
                 rays += n * dirs.n_directions
                 radii_used.append(r)
+                directions.append(dirs.n_directions)
                 total += hk
                 np.multiply(vox.albedo, hk, out=current)  # in place: no second (n, 3) array
                 pk = float((current * area).sum())
                 bounce_power.append(pk)
                 if keep_bounces:
                     history.append(hk)
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(new=f"{pk / p1:.2e}")
+                bbar.update(1)
+                bbar.set_postfix(new=f"{pk / p1:.2e}")
                 if pk <= config.tolerance * p1:
                     stop = f"tolerance ({pk / p1:.2e} <= {config.tolerance:g} of the first bounce)"
                     break
-            if bar is not None:
-                bar.close()
     elif p1 > 0:
         stop = "bounce cap (1)"
     radiosity = vox.emission + vox.albedo * total
     info = {"photons": int(config.photons), "photons_landed": landed, "emitted_power": emitted.tolist(),
             "discrete_rays": int(rays), "voxels": n, "cell_size": vox.cell_size,
-            "directions_per_bounce": [24 * r * r + 2 for r in radii_used], "bounces": len(bounce_power),
+            "directions_per_bounce": directions, "bounces": len(bounce_power),
             "stop_reason": stop, "voxel_bytes": vox.nbytes}
     if keep_bounces:
         info["history"] = history

@@ -7,11 +7,11 @@ curve. EXR keeps linear radiance as float32 (or half).
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
-from .errors import VoxgiError
+from ..errors import VoxgiError
+from ..fileio import atomic_write
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -41,23 +41,6 @@ def tonemap(image: np.ndarray, exposure_ev=None) -> np.ndarray:
     return (out * 255.0 + 0.5).astype(np.uint8)
 
 
-def _atomic(path, writer):
-    folder = os.path.dirname(os.path.abspath(path)) or "."
-    if not os.path.isdir(folder):
-        raise VoxgiError("output folder does not exist", path)
-    suffix = os.path.splitext(path)[1]
-    fd, tmp = tempfile.mkstemp(prefix=".voxgi-", suffix=suffix, dir=folder)
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-
-
 def write_image(path, image: np.ndarray, exposure_ev=None):
     """Writes .exr (linear float32) or .png (tone-mapped sRGB), atomically."""
     ext = os.path.splitext(path)[1].lower()
@@ -76,7 +59,7 @@ def write_image(path, image: np.ndarray, exposure_ev=None):
             Image.fromarray(rgb, "RGB").save(tmp, format="PNG")
     else:
         raise VoxgiError(f"unsupported image format {ext or '(none)'!r}; use .exr or .png", path)
-    _atomic(path, w)
+    atomic_write(path, w)
 
 
 def read_exr(path) -> np.ndarray:

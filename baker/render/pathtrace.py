@@ -1,9 +1,11 @@
 """Reference path tracer: Lambertian surfaces, area emitters with next-event
 estimation and multiple importance sampling (power heuristic, Veach 1997),
-punctual lights, Russian roulette. The yardstick for every other method.
+punctual lights, a uniform sky, Russian roulette. The yardstick for every
+other method; lights and surfaces come from the formulas of
+scene/surfaces.py that the photons use as well.
 
 Radiance along a camera ray: L = L_e + integral of (rho / pi) L_in cos.
-One-sided triangles are black absorbers from behind (METHOD.md section 2);
+One-sided triangles are black absorbers from behind (docs/design.md section 2);
 emitters emit from their front side (both sides when double-sided).
 Random numbers come from (seed, pixel * spp + sample, dimension), so the
 image does not depend on the thread count.
@@ -15,30 +17,36 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .kernels.rng import rand01
-from .kernels.sampling import cosine_hemisphere
-from .kernels.traverse import STACK_SIZE, any_hit, closest_hit, hit_normal
-from .render import primary_ray
-from .surfaces import albedo_at, punctual_irradiance, sample_emitter
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.rng import (PATH_DIM_BOUNCE, PATH_DIM_LIGHT, PATH_DIM_ROULETTE, PATH_DIMS_PER_BOUNCE,
+                           STREAM_PIXEL_JITTER, rand01)
+from ..kernels.sampling import cosine_hemisphere
+from ..kernels.traverse import any_hit, closest_hit, hit_normal
+from ..scene.surfaces import albedo_at, punctual_irradiance, sample_emitter, sky_radiance, triangle_normal
+from .camera import primary_ray, render_bands
 
 MAX_DEPTH = 1000
 RR_DEPTH = 3
-_DIMS_PER_BOUNCE = 16
 
 
 @njit(cache=True)
 def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
-    """Radiance (r, g, b) arriving at o from direction -d, and the depth reached."""
-    tri_index = bvh[6]
-    mat_of, emission, double = surf[0], surf[2], surf[3]
-    n_emitters = surf[6].shape[0]
-    n_lights = surf[13].shape[0]
+    """Radiance (r, g, b) arriving at o from direction -d."""
+    tri_index = bvh.tri_index
+    mat_of, emission, double = surf.tri_material, surf.emission, surf.double_sided
+    n_emitters = surf.emitters.shape[0]
+    n_lights = surf.light_kind.shape[0]
     lr, lg, lb = 0.0, 0.0, 0.0
     tr, tg, tb = 1.0, 1.0, 1.0
     pdf_bsdf = 0.0  # 0: the camera ray (emission counts in full)
     for depth in range(MAX_DEPTH):
         t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:
+            # escaped: the sky, if any (found by direction sampling only: no MIS weight needed)
+            sr, sg, sb = sky_radiance(surf, dx, dy, dz)
+            lr += tr * sr
+            lg += tg * sg
+            lb += tb * sb
             break
         tri = tri_index[j]
         nx, ny, nz = hit_normal(bvh, j)
@@ -52,7 +60,7 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
         if er > 0.0 or eg > 0.0 or eb > 0.0:
             w = 1.0
             if pdf_bsdf > 0.0 and n_emitters > 0:
-                pdf_light = surf[8][tri] / surf[5][tri] * t * t / max(cos_in, 1e-300)
+                pdf_light = surf.emitter_prob[tri] / surf.tri_area[tri] * t * t / max(cos_in, 1e-300)
                 w = pdf_bsdf * pdf_bsdf / (pdf_bsdf * pdf_bsdf + pdf_light * pdf_light)
             lr += tr * er * w
             lg += tg * eg * w
@@ -63,26 +71,25 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
         px = ox + t * dx + eps * nx
         py = oy + t * dy + eps * ny
         pz = oz + t * dz + eps * nz
-        dim = depth * _DIMS_PER_BOUNCE
+        dim = depth * PATH_DIMS_PER_BOUNCE
         # next-event estimation on the area emitters
         if n_emitters > 0:
-            ltri, qx, qy, qz, b1, b2, pdf_area = sample_emitter(surf, seed, index, dim)
+            ltri, qx, qy, qz, p_tri = sample_emitter(surf, rand01(seed, index, dim + PATH_DIM_LIGHT),
+                                                     rand01(seed, index, dim + PATH_DIM_LIGHT + 1),
+                                                     rand01(seed, index, dim + PATH_DIM_LIGHT + 2))
             wx, wy, wz = qx - px, qy - py, qz - pz
             d2 = wx * wx + wy * wy + wz * wz
             dist = math.sqrt(d2)
             wx, wy, wz = wx / dist, wy / dist, wz / dist
             cos_x = nx * wx + ny * wy + nz * wz
-            c = surf[4]
-            ax, ay, az = c[ltri, 1, 0] - c[ltri, 0, 0], c[ltri, 1, 1] - c[ltri, 0, 1], c[ltri, 1, 2] - c[ltri, 0, 2]
-            bx, by, bz = c[ltri, 2, 0] - c[ltri, 0, 0], c[ltri, 2, 1] - c[ltri, 0, 1], c[ltri, 2, 2] - c[ltri, 0, 2]
-            mx, my, mz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-            cos_l = -(mx * wx + my * wy + mz * wz) / math.sqrt(mx * mx + my * my + mz * mz)
+            mx, my, mz = triangle_normal(surf.corners, ltri)
+            cos_l = -(mx * wx + my * wy + mz * wz)
             lmat = mat_of[ltri]
             if double[lmat]:
                 cos_l = abs(cos_l)
             if cos_x > 0.0 and cos_l > 0.0 and not any_hit(bvh, stack, px, py, pz, wx, wy, wz, 0.0, dist * (1.0 - 1e-7)
                                                               - eps):
-                pdf_light = pdf_area * d2 / cos_l
+                pdf_light = p_tri / surf.tri_area[ltri] * d2 / cos_l
                 pb = cos_x / math.pi
                 w = pdf_light * pdf_light / (pdf_light * pdf_light + pb * pb)
                 f = cos_x / math.pi / pdf_light * w
@@ -97,8 +104,8 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
                 lg += tg * ag / math.pi * hg
                 lb += tb * ab / math.pi * hb
         # continue the path: cosine sampling, f cos / pdf = albedo
-        dx, dy, dz, cos = cosine_hemisphere(rand01(seed, index, dim + 3), rand01(seed, index, dim + 4),
-                                            nx, ny, nz)
+        dx, dy, dz, cos = cosine_hemisphere(rand01(seed, index, dim + PATH_DIM_BOUNCE),
+                                            rand01(seed, index, dim + PATH_DIM_BOUNCE + 1), nx, ny, nz)
         if cos <= 0.0:
             break
         pdf_bsdf = cos / math.pi
@@ -106,7 +113,7 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
         ox, oy, oz = px, py, pz
         if depth + 1 >= RR_DEPTH:
             q = min(max(tr, max(tg, tb)), 0.95)
-            if rand01(seed, index, dim + 5) >= q:
+            if rand01(seed, index, dim + PATH_DIM_ROULETTE) >= q:
                 break
             tr, tg, tb = tr / q, tg / q, tb / q
     return lr, lg, lb
@@ -123,8 +130,8 @@ def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out)
         sr, sg, sb = 0.0, 0.0, 0.0
         for s in range(spp):
             index = pixel * spp + s
-            jx = rand01(seed, index, 1000001)
-            jy = rand01(seed, index, 1000002)
+            jx = rand01(seed, index, STREAM_PIXEL_JITTER)
+            jy = rand01(seed, index, STREAM_PIXEL_JITTER + 1)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, jx, jy, width, height)
             r, g, b = trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz)
             sr += r
@@ -137,7 +144,6 @@ def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out)
 
 def render_pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, progress=None):
     """Linear radiance image (height, width, 3) float32."""
-    from .render import render_bands
     eps = 1e-7 * surfaces.scale
     return render_bands(_render_rows, width, height,
                         (scene_bvh.arrays, surfaces.arrays, camera_arr, eps, np.uint64(seed), int(spp),

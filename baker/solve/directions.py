@@ -1,4 +1,4 @@
-"""Direction sets (METHOD.md section 3).
+"""Direction sets (docs/design.md section 3).
 
 The cube set D_r: all integer vectors s = (a, b, c) with max(|a|,|b|,|c|) = r,
 |D_r| = 24 r^2 + 2. Each s owns the unit square around it on the cube face

@@ -1,12 +1,12 @@
-"""The BVH as a Python object: build once per scene, pass `.arrays` to kernels."""
+"""The scene's BVH as a Python object: build once, pass `.arrays` to kernels."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.bvh import LEAF_MAX, build_bvh, pack_nodes, reorder_triangles
-from .kernels.traverse import any_hit_batch, closest_hit_batch
+from ..kernels.bvh import LEAF_MAX, STACK_SIZE, BVHArrays, build_bvh, pack_nodes, reorder_triangles
+from ..kernels.traverse import any_hit_batch, closest_hit_batch
 
 
 @dataclass(frozen=True)
@@ -18,10 +18,12 @@ class BVH:
     count: np.ndarray       # (nn,) int32 triangles in a leaf (0: inner node)
     tris: np.ndarray        # (nt, 9) float32 corners in BVH order
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
+    depth: int = 0          # the deepest node's level (root 0)
 
     @property
-    def arrays(self):
-        return (self.child_box, self.root_box, self.right, self.first, self.count, self.tris, self.tri_index)
+    def arrays(self) -> BVHArrays:
+        return BVHArrays(self.child_box, self.root_box, self.right, self.first, self.count, self.tris,
+                         self.tri_index)
 
     @property
     def node_count(self) -> int:
@@ -65,14 +67,16 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
     Node boxes are padded by a relative 1e-9 of the scene extent and rounded
     outward to float32 so rounding never loses a hit."""
     corners = np.ascontiguousarray(np.asarray(corners, np.float32), np.float64)
-    lo, hi, right, first, count, order = build_bvh(corners, leaf_max)
+    lo, hi, right, first, count, order, depth = build_bvh(corners, leaf_max)
+    if depth >= STACK_SIZE:  # the build bounds it (kernels/bvh.py): this would be a bug
+        raise RuntimeError(f"BVH depth {depth} exceeds the traversal stack ({STACK_SIZE})")
     scale = float(np.abs(corners).max()) if corners.size else 1.0
     pad = 1e-9 * max(scale, 1e-30)
     lo, hi = lo - pad, hi + pad
     child = pack_nodes(lo, hi, right, count)
     root = np.concatenate([lo[0], hi[0]]).astype(np.float64)
     return BVH(_outward32(child), root, right, first, count, reorder_triangles(corners, order).astype(np.float32),
-               order.astype(np.int32))
+               order.astype(np.int32), int(depth))
 
 
 def build_scene_bvh(scene) -> BVH:

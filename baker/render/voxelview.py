@@ -8,9 +8,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels.lookup import voxel_of_hit
-from .kernels.traverse import STACK_SIZE, closest_hit, hit_normal
-from .render import primary_ray
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.traverse import closest_hit, hit_normal
+from ..voxels.lookup import voxel_of_hit
+from .camera import primary_ray, render_bands
 
 
 @njit(cache=True, parallel=True)
@@ -26,7 +27,7 @@ def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plan
         if j < 0:
             continue
         nx, ny, nz = hit_normal(bvh, j)
-        tri = bvh[6][j]
+        tri = bvh.tri_index[j]
         back = nx * dx + ny * dy + nz * dz > 0.0
         if back and not double[mat_of[tri]]:
             continue  # a one-sided back: black
@@ -40,10 +41,9 @@ def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plan
 
 def render_voxels(bvh, surfaces, solution, camera_arr, width, height, progress=None):
     """Linear image (height, width, 3) float32 of the voxels' radiance B / pi."""
-    from .render import render_bands
     v = solution.voxels
     return render_bands(_rows, width, height,
-                        (bvh.arrays, surfaces.arrays[3], surfaces.arrays[0], camera_arr,
+                        (bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, camera_arr,
                          np.ascontiguousarray(solution.radiance), v.piece_key, v.piece_voxel, v.piece_plane,
                          v.piece_sign, v.side_start, v.back_side, v.origin, v.cell_size, v.dims, int(width),
                          int(height)), progress)

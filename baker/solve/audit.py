@@ -1,4 +1,4 @@
-"""Visibility audit (METHOD.md section 4): how often does the discrete
+"""Visibility audit (docs/design.md section 4): how often does the discrete
 first voxel I(x, s) of the linear method differ from the first surface a
 continuous ray from x's centroid along s hits (through the BVH)?
 
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kernels.rng import STREAM_AUDIT_FAMILIES, STREAM_AUDIT_VOXELS, rand01
 from .directions import DirectionSet, direction_set
-from .kernels.rng import rand01
 from .propagate import TAU, LineSweeper
 
 
@@ -65,7 +65,7 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
     dirs = direction_set(radius)
     h = voxels.cell_size
     eps = 1e-6 * float(np.abs(scene.vertices).max() or 1.0)
-    fam = sorted({int(rand01(seed, 77, i) * dirs.n_families) for i in range(families)})
+    fam = sorted({int(rand01(seed, STREAM_AUDIT_FAMILIES, i) * dirs.n_families) for i in range(families)})
     totals = np.zeros(4)  # weight: all, sees through, misses, other surface
     worst, pairs = [], 0
     double = scene.double_sided[scene.material_ids]
@@ -74,7 +74,7 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
         cand = np.nonzero(weight > 0)[0]
         if len(cand) == 0:
             continue
-        pick = cand[(np.array([rand01(seed, 1000 + f, i) for i in range(min(samples, len(cand)))]) *
+        pick = cand[(np.array([rand01(seed, STREAM_AUDIT_VOXELS + f, i) for i in range(min(samples, len(cand)))]) *
                      len(cand)).astype(np.int64)]
         u = dirs.unit[f][None, :] * sgn[pick, None]
         # the ray starts tau in front of the centroid: on a curved surface the centroid of a
@@ -82,7 +82,7 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
         # meet the surface's own back at once (the discrete rule allows the same tau)
         o = voxels.centroid[pick] + voxels.normal[pick] * max(eps, TAU * h)
         t, tri, _, _ = bvh.closest(o, u)
-        corners = surfaces.arrays[4]
+        corners = surfaces.arrays.corners
         back = np.zeros(len(pick), bool)
         hit_tri = tri >= 0
         nt = np.cross(corners[tri[hit_tri], 1] - corners[tri[hit_tri], 0], corners[tri[hit_tri], 2] - corners[tri[hit_tri], 0])

@@ -1,8 +1,13 @@
-"""Which voxel holds a surface point: used by photon deposits and the voxel view."""
+"""Which voxel holds a surface point (photon deposits, the voxel view), and
+which neighbour a tiny voxel pools its photons with."""
 import math
 
 import numpy as np
 from numba import njit, prange
+
+from .tolerances import PARALLEL_COS
+
+POOL_PLANE = 0.25  # cells: a neighbour's plane within this is the same surface for pooling
 
 
 @njit(cache=True)
@@ -67,7 +72,8 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
     within h / 4, in its cell or the 26 neighbours, on the same side of any
     surface cutting either one's cell), else -1. Photon
     estimates of tiny voxels (a triangle grazing a cell corner) are pooled
-    with it: one photon in a 1e-6-cell sliver would otherwise be a spike."""
+    with it: one photon in a 1e-6-cell sliver would otherwise be a spike.
+    The 25 degrees are PARALLEL_COS, the h / 4 is POOL_PLANE (in cells)."""
     n = vkey.shape[0]
     parent = np.full(n, -1, np.int64)
     for i in prange(n):
@@ -92,7 +98,7 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
                         plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
                             (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
                             (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                        if cos > 0.9 and abs(plane) < 0.25 * h and _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign,
+                        if cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign,
                                                                                 origin, h) \
                                 and _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
                             best, best_a = j, varea[j]

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .scene import Camera
+from ..scene.model import Camera
 
 
 def camera_array(camera: Camera, width: int, height: int) -> np.ndarray:

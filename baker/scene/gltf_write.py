@@ -121,7 +121,7 @@ class GltfBuilder:
     def light(self, name, kind, color=(1, 1, 1), intensity=1.0, position=(0, 0, 0),
               direction=(0, -1, 0), inner_deg=0.0, outer_deg=45.0) -> int:
         """KHR_lights_punctual light; point and spot intensity in W/sr,
-        directional in W/m^2 (METHOD.md section 1)."""
+        directional in W/m^2 (docs/design.md section 1)."""
         light = {"name": name, "type": kind, "color": [float(c) for c in color], "intensity": float(intensity)}
         if kind == "spot":
             light["spot"] = {"innerConeAngle": float(np.radians(inner_deg)),

@@ -14,7 +14,9 @@ import os
 
 import numpy as np
 
-from .errors import SceneError
+from ..errors import SceneError
+from .model import PunctualLight, make_camera, make_material
+from .textures import image_to_albedo
 
 _COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -104,7 +106,6 @@ def _world_nodes(doc):
 
 def _texture(doc, bufs, tex_index, path, folder):
     from PIL import Image
-    from .scene import _image_to_albedo
     tex = doc.textures[tex_index]
     if tex.source is None:
         return None
@@ -121,12 +122,34 @@ def _texture(doc, bufs, tex_index, path, folder):
             data = f.read()
     else:
         return None
-    return _image_to_albedo(Image.open(io.BytesIO(data)))
+    return image_to_albedo(Image.open(io.BytesIO(data)))
+
+
+# material extensions whose effect a diffuse baker drops
+_IGNORED_EXTENSIONS = {"KHR_materials_transmission": "transmission", "KHR_materials_volume": "volume",
+                       "KHR_materials_clearcoat": "clearcoat", "KHR_materials_sheen": "sheen",
+                       "KHR_materials_specular": "specular", "KHR_materials_iridescence": "iridescence"}
+
+
+def ignored_terms(m) -> list:
+    """What of glTF material m the diffuse baker ignores: metallic (the
+    factor, 1 when unset, as the specification says), blended or masked
+    alpha, and the extensions above."""
+    out = []
+    pbr = m.pbrMetallicRoughness
+    metallic = 1.0 if pbr is None or pbr.metallicFactor is None else float(pbr.metallicFactor)
+    if metallic > 0:
+        out.append("metallic")
+    if m.alphaMode in ("BLEND", "MASK"):
+        out.append(f"alpha {m.alphaMode}")
+    for ext, what in _IGNORED_EXTENSIONS.items():
+        if ext in (m.extensions or {}):
+            out.append(what)
+    return out
 
 
 def read_gltf(path):
     import pygltflib
-    from .scene import PunctualLight, _mat, make_camera
     try:
         doc = pygltflib.GLTF2().load(path)
     except Exception as e:
@@ -135,7 +158,7 @@ def read_gltf(path):
         raise SceneError("not a valid glTF file", path)
     bufs = _buffers(doc, path)
     folder = os.path.dirname(path)
-    materials = []
+    materials, ignored = [], {}
     for i, m in enumerate(doc.materials or []):
         pbr = m.pbrMetallicRoughness
         albedo = (pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1])[:3]
@@ -147,7 +170,10 @@ def read_gltf(path):
         tex = None
         if pbr and pbr.baseColorTexture is not None:
             tex = _texture(doc, bufs, pbr.baseColorTexture.index, path, folder)
-        materials.append(_mat(m.name or f"material_{i}", albedo, emission, bool(m.doubleSided), tex))
+        name = m.name or f"material_{i}"
+        materials.append(make_material(name, albedo, emission, bool(m.doubleSided), tex))
+        for what in ignored_terms(m):
+            ignored.setdefault(what, []).append(name)
     default_index = None
     verts, tris, mids, norms, uvs = [], [], [], [], []
     has_normals = has_uvs = True
@@ -215,7 +241,7 @@ def read_gltf(path):
             if prim.material is None:
                 if default_index is None:
                     default_index = len(materials)
-                    materials.append(_mat("default", (1, 1, 1)))
+                    materials.append(make_material("default", (1, 1, 1)))
                 mid = default_index
             else:
                 mid = prim.material
@@ -224,6 +250,10 @@ def read_gltf(path):
             offset += len(pos)
     if not tris:
         raise SceneError("no triangles", path)
-    return dict(vertices=np.concatenate(verts), triangles=np.concatenate(tris), material_ids=np.concatenate(mids),
+    notes = []
+    if ignored:
+        said = "; ".join(f"{what} in {', '.join(repr(n) for n in names)}" for what, names in ignored.items())
+        notes.append(f"{path}: the baker treats every surface as diffuse and ignores {said}")
+    return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris), material_ids=np.concatenate(mids),
                 materials=materials, normals=np.concatenate(norms) if has_normals and norms else None,
                 uvs=np.concatenate(uvs) if has_uvs and uvs else None, cameras=cameras, lights=lights)

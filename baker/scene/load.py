@@ -1,0 +1,124 @@
+"""Loading a scene file (glTF 2.0, OBJ/MTL, PLY) or a built-in scene by name
+into a validated `Scene`."""
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import replace
+from importlib.resources import files
+
+import numpy as np
+
+from ..errors import SceneError, VoxgiWarning
+from .model import Scene, Sky, make_material
+
+FORMATS = (".glb", ".gltf", ".obj", ".ply")
+
+
+def builtin_scenes() -> list:
+    """Names of the scenes shipped with the package (`scenes/*.glb`)."""
+    try:
+        return sorted(p.name[:-4] for p in files("scenes").iterdir() if p.name.endswith(".glb"))
+    except (ModuleNotFoundError, FileNotFoundError):
+        return []
+
+
+def resolve(path) -> str:
+    """A file path, or the path of a built-in scene given by name
+    (`cornell_box`), so that commands work from any folder and install."""
+    path = os.fspath(path)
+    if os.path.exists(path) or os.path.splitext(path)[1].lower() in FORMATS or os.sep in path:
+        return path
+    if path in builtin_scenes():
+        return str(files("scenes").joinpath(path + ".glb"))
+    return path
+
+
+def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None) -> Scene:
+    """Loads a .gltf/.glb, .obj or .ply file (or a built-in scene by name)
+    into a validated `Scene`, with extra punctual `lights` and a `sky` (a
+    scanned model has no lamp of its own).
+
+    OBJ and PLY carry no sidedness: they are double-sided unless `one_sided`.
+    Raises SceneError naming the file and the problem; what the file holds
+    that the baker ignores or repairs becomes a VoxgiWarning (and is kept in
+    `Scene.warnings`).
+    """
+    path = resolve(path)
+    if not os.path.exists(path):
+        known = builtin_scenes()
+        hint = f" (built-in scenes: {', '.join(known)})" if known and os.sep not in path else ""
+        raise SceneError(f"file not found{hint}", path)
+    if os.path.isdir(path):
+        raise SceneError("is a folder, not a scene file", path)
+    ext = os.path.splitext(path)[1].lower()
+    try:
+        if ext in (".gltf", ".glb"):
+            from .gltf_read import read_gltf
+            parts = read_gltf(path)
+        elif ext == ".obj":
+            from .obj import read_obj
+            parts = read_obj(path, not one_sided)
+        elif ext == ".ply":
+            parts = _read_ply(path, not one_sided)
+        else:
+            raise SceneError(f"unsupported format {ext or '(no extension)'!r}; use {', '.join(FORMATS)}", path)
+    except SceneError as e:
+        if e.path is None:
+            e.path = path
+        raise
+    except Exception as e:  # a parser's own exception: say which file, in one line
+        raise SceneError(f"cannot read ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})",
+                         path) from e
+    parts["lights"] = tuple(parts.get("lights", ())) + tuple(lights)
+    return _validate(path, sky=sky, **parts)
+
+
+def _validate(path, vertices, triangles, material_ids, materials, normals=None, uvs=None, cameras=(),
+              lights=(), sky=None, notes=()) -> Scene:
+    vertices = np.asarray(vertices, np.float64).reshape(-1, 3)
+    triangles = np.asarray(triangles, np.int64).reshape(-1, 3)
+    material_ids = np.asarray(material_ids, np.int64).reshape(-1)
+    notes = list(notes)
+    if len(triangles) == 0:
+        raise SceneError("no triangles", path)
+    if not np.isfinite(vertices).all():
+        bad = int((~np.isfinite(vertices)).any(axis=1).sum())
+        raise SceneError(f"{bad} vertices are NaN or infinite", path)
+    if triangles.min() < 0 or triangles.max() >= len(vertices):
+        raise SceneError(f"triangle indices out of range (0..{len(vertices) - 1}, found "
+                         f"{triangles.min()}..{triangles.max()})", path)
+    if np.abs(vertices).max() > 1e18:
+        raise SceneError("vertex coordinates beyond 1e18", path)
+    c = vertices[triangles]
+    area2 = np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
+    scale = float(np.abs(vertices).max()) or 1.0
+    # Below float32's resolution at this scale a triangle has no usable area.
+    degenerate = area2 <= 1e-14 * scale * scale
+    if degenerate.any():
+        n = int(degenerate.sum())
+        notes.append(f"{path}: dropped {n} degenerate (zero-area) triangle{'s' * (n != 1)}")
+        triangles, material_ids = triangles[~degenerate], material_ids[~degenerate]
+        if len(triangles) == 0:
+            raise SceneError("every triangle is degenerate", path)
+    scene = Scene(vertices=vertices.astype(np.float32), triangles=triangles.astype(np.int32),
+                  material_ids=material_ids.astype(np.int32), materials=tuple(materials),
+                  normals=None if normals is None else np.asarray(normals, np.float32),
+                  uvs=None if uvs is None else np.asarray(uvs, np.float32),
+                  cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path)
+    if not scene.has_light():
+        notes.append(f"{path}: the scene has no emitter (no emissive material, no punctual light): it will bake "
+                     f"black unless lit with --sky or --sun")
+    for note in notes:
+        warnings.warn(note, VoxgiWarning, stacklevel=3)
+    return replace(scene, warnings=tuple(notes))
+
+
+def _read_ply(path, double_sided):
+    import trimesh
+    mesh = trimesh.load(path, force="mesh", process=False)
+    if not hasattr(mesh, "faces") or len(mesh.faces) == 0:
+        raise SceneError("no triangles (a point cloud?)", path)
+    return dict(vertices=np.asarray(mesh.vertices), triangles=np.asarray(mesh.faces),
+                material_ids=np.zeros(len(mesh.faces)),
+                materials=[make_material("default", double_sided=double_sided)])

@@ -1,0 +1,172 @@
+"""The scene model: triangles as flat arrays and what they are made of.
+
+A `Scene` is what every later stage reads: indexed float32 vertices, one
+material index per triangle, materials (albedo, emitted radiance,
+double-sidedness, optional albedo texture), cameras, punctual lights and an
+optional uniform sky. Units (docs/design.md section 1): emitted radiance
+L_e in W m^-2 sr^-1; point and spot intensity in W/sr; directional
+irradiance in W/m^2 on a surface facing the light; sky radiance in
+W m^-2 sr^-1.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import SceneError
+
+LIGHT_KINDS = ("point", "spot", "directional")
+UP = np.array([0.0, 1.0, 0.0])  # glTF's up axis: the sky's zenith
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    albedo: np.ndarray            # (3,) float32, linear base colour factor
+    emission: np.ndarray          # (3,) float32, emitted radiance L_e
+    double_sided: bool = False
+    texture: np.ndarray | None = None   # (h, w, 3) float32 linear albedo, multiplied by `albedo`
+
+
+def make_material(name, albedo=(0.8, 0.8, 0.8), emission=(0, 0, 0), double_sided=False, texture=None) -> Material:
+    return Material(name, np.asarray(albedo, np.float32)[:3], np.asarray(emission, np.float32)[:3],
+                    bool(double_sided), texture)
+
+
+@dataclass(frozen=True)
+class Camera:
+    name: str
+    position: np.ndarray          # (3,) float64
+    forward: np.ndarray           # (3,) unit
+    up: np.ndarray                # (3,) unit, orthogonal to forward
+    yfov: float                   # vertical field of view, radians
+    aspect: float | None = None   # width / height, None: from the image
+
+
+def make_camera(name, position, forward, up, yfov, aspect=None) -> Camera:
+    """A camera with `up` made orthogonal to `forward` (any up not parallel
+    to forward will do; a parallel one is replaced)."""
+    f = np.asarray(forward, float)
+    f = f / np.linalg.norm(f)
+    u = np.asarray(up, float)
+    r = np.cross(f, u)
+    if np.linalg.norm(r) < 1e-9:
+        r = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    return Camera(name, np.asarray(position, float), f, u, float(yfov), aspect)
+
+
+@dataclass(frozen=True)
+class PunctualLight:
+    name: str
+    kind: str                     # one of LIGHT_KINDS
+    intensity: np.ndarray         # (3,) W/sr (point, spot) or W/m^2 (directional), colour included
+    position: np.ndarray          # (3,)
+    direction: np.ndarray         # (3,) unit, where the light points
+    inner_cone: float = 0.0       # radians (spot)
+    outer_cone: float = np.pi / 4
+
+
+def sun(azimuth_deg: float, elevation_deg: float, irradiance, name="sun") -> PunctualLight:
+    """A directional light from azimuth (degrees from +Z towards +X) and
+    elevation (degrees above the horizon, +Y up), giving `irradiance` W/m^2
+    (a number or RGB) on a surface facing it."""
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    towards = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+    e = np.broadcast_to(np.asarray(irradiance, np.float64), (3,)).copy()
+    return PunctualLight(name, "directional", e, np.zeros(3), -towards)
+
+
+@dataclass(frozen=True)
+class Sky:
+    """Uniform sky light: radiance (3,) W m^-2 sr^-1 arriving from every
+    direction w with w . UP > 0 (hemisphere) or from all directions."""
+    radiance: np.ndarray
+    hemisphere: bool = True
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Triangles and what they are made of.
+
+    vertices (nv, 3) float32; triangles (nt, 3) int32; material_ids (nt,) int32;
+    normals (nv, 3) float32 or None; uvs (nv, 2) float32 or None.
+    """
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material_ids: np.ndarray
+    materials: tuple
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    cameras: tuple = ()
+    lights: tuple = ()
+    sky: Sky | None = None
+    path: str = ""
+    warnings: tuple = field(default=())
+
+    # -- flat material arrays for kernels ----------------------------------
+    @property
+    def albedo(self) -> np.ndarray:
+        """(nm, 3) float32 albedo factors."""
+        return np.array([m.albedo for m in self.materials], np.float32).reshape(-1, 3)
+
+    @property
+    def emission(self) -> np.ndarray:
+        """(nm, 3) float32 emitted radiance."""
+        return np.array([m.emission for m in self.materials], np.float32).reshape(-1, 3)
+
+    @property
+    def double_sided(self) -> np.ndarray:
+        """(nm,) bool."""
+        return np.array([m.double_sided for m in self.materials], np.bool_)
+
+    def triangle_corners(self) -> np.ndarray:
+        """(nt, 3, 3) float64 corner positions."""
+        return self.vertices[self.triangles].astype(np.float64)
+
+    def triangle_areas(self) -> np.ndarray:
+        c = self.triangle_corners()
+        return 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
+
+    def emitter_triangles(self) -> np.ndarray:
+        """Indices of triangles whose material emits."""
+        return np.nonzero(self.emission.max(axis=1)[self.material_ids] > 0)[0].astype(np.int32)
+
+    def emitted_power(self) -> np.ndarray:
+        """(3,) total power of the area emitters, W: pi L_e area per emitting side."""
+        em = self.emission[self.material_ids].astype(np.float64)
+        sides = np.where(self.double_sided[self.material_ids], 2.0, 1.0)
+        return (np.pi * em * (self.triangle_areas() * sides)[:, None]).sum(axis=0)
+
+    def has_light(self) -> bool:
+        """Does anything emit: an area emitter, a punctual light, a sky?"""
+        sky = self.sky is not None and float(np.max(self.sky.radiance)) > 0
+        return bool(len(self.emitter_triangles()) or self.lights or sky)
+
+    def bounds(self):
+        return self.vertices.min(axis=0).astype(np.float64), self.vertices.max(axis=0).astype(np.float64)
+
+    def with_lights(self, lights=(), sky: Sky | None = None) -> "Scene":
+        """This scene with more punctual lights and (if given) a sky."""
+        return replace(self, lights=tuple(self.lights) + tuple(lights), sky=sky if sky is not None else self.sky)
+
+    def camera(self, which=None, bvh=None) -> Camera:
+        """A camera by name or index (None: the first, or an automatic one
+        that sees the scene, scene/camera.py; `bvh` spares it a build)."""
+        if which is None:
+            if self.cameras:
+                return self.cameras[0]
+            from .camera import auto_camera
+            return auto_camera(self, bvh)
+        if isinstance(which, int) or (isinstance(which, str) and which.lstrip("-").isdigit()):
+            i = int(which)
+            if not -len(self.cameras) <= i < len(self.cameras):
+                raise SceneError(f"camera index {i} out of range ({len(self.cameras)} cameras)", self.path)
+            return self.cameras[i]
+        for cam in self.cameras:
+            if cam.name == which:
+                return cam
+        names = ", ".join(c.name for c in self.cameras) or "none"
+        raise SceneError(f"no camera named {which!r} (cameras: {names})", self.path)

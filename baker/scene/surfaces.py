@@ -1,0 +1,221 @@
+"""The scene as the kernels read it, and the formulas every method shares.
+
+`pack(scene)` flattens a Scene into `SurfaceArrays`, a namedtuple of
+arrays that numba kernels take whole (fields by name). The numba helpers
+below are the one place where "the surface at a hit" and "the light a
+source gives" are defined: the path tracer (the yardstick), the photons
+(the product) and later the VPLs call the same functions, so they cannot
+drift apart.
+
+Light kinds (kernel codes): area emitters (triangles with emission),
+point, spot (glTF's cone falloff), directional (a sun: irradiance on a
+surface facing it) and a uniform sky over the upper hemisphere or the
+whole sphere (docs/design.md section 1).
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..kernels.sampling import sample_cdf, triangle_point
+from .model import UP
+
+LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_SKY = -1, 0, 1, 2, 3
+KIND_CODE = {"point": LIGHT_POINT, "spot": LIGHT_SPOT, "directional": LIGHT_DIRECTIONAL}
+SKY_NONE, SKY_HEMISPHERE, SKY_SPHERE = 0, 1, 2
+
+SurfaceArrays = namedtuple("SurfaceArrays", [
+    "tri_material",     # (nt,) int32 material of each triangle
+    "albedo",           # (nm, 3) float64 albedo factor
+    "emission",         # (nm, 3) float64 emitted radiance L_e
+    "double_sided",     # (nm,) bool
+    "corners",          # (nt, 3, 3) float64 triangle corners
+    "tri_area",         # (nt,) float64
+    "emitters",         # (ne,) int32 triangles that emit
+    "emitter_cdf",      # (ne,) float64 cumulative emitted power over `emitters` (inclusive)
+    "emitter_prob",     # (nt,) float64 probability of drawing each triangle by power (0: not an emitter)
+    "tex_offset",       # (nm,) int64 first texel of a material's texture in tex_data (-1: none)
+    "tex_size",         # (nm, 2) int64 texture width, height
+    "tex_data",         # (texels, 3) float32 linear albedo texels of every texture
+    "uvs",              # (nt, 3, 2) float64 texture coordinates of the corners
+    "light_kind",       # (nl,) int32 LIGHT_POINT | LIGHT_SPOT | LIGHT_DIRECTIONAL
+    "light_pos",        # (nl, 3) float64
+    "light_dir",        # (nl, 3) float64 unit, where the light points
+    "light_intensity",  # (nl, 3) float64 W/sr, or W/m^2 for directional
+    "light_cones",      # (nl, 2) float64 cos of the spot's inner and outer cone angles
+    "sky_radiance",     # (3,) float64 W m^-2 sr^-1
+    "sky_mode",         # int: SKY_NONE | SKY_HEMISPHERE | SKY_SPHERE
+    "sky_up",           # (3,) float64 unit zenith
+])
+
+
+@dataclass(frozen=True)
+class Surfaces:
+    """Kernel-side view of a Scene: `arrays` (SurfaceArrays), the area
+    emitters' total power (3,) W and the scene's scale (largest |coordinate|,
+    for ray offsets)."""
+    arrays: SurfaceArrays
+    emitted_power: np.ndarray
+    scale: float
+
+    @property
+    def n_emitters(self) -> int:
+        return len(self.arrays.emitters)
+
+
+def pack(scene) -> Surfaces:
+    corners = scene.triangle_corners()
+    area = scene.triangle_areas()
+    mids = scene.material_ids
+    emission = scene.emission.astype(np.float64)
+    sides = np.where(scene.double_sided[mids], 2.0, 1.0)
+    power = np.pi * emission[mids] * (area * sides)[:, None]           # (nt, 3)
+    weight = power.sum(axis=1)
+    emitters = np.nonzero(weight > 0)[0].astype(np.int32)
+    cdf = np.cumsum(weight[emitters]) if len(emitters) else np.zeros(1)
+    prob = np.zeros(len(area))
+    if len(emitters):
+        prob[emitters] = weight[emitters] / cdf[-1]
+    # textures: one flat texel array, an offset and size per material
+    tex_offset = np.full(len(scene.materials), -1, np.int64)
+    tex_size = np.zeros((len(scene.materials), 2), np.int64)
+    chunks, off = [], 0
+    for i, m in enumerate(scene.materials):
+        if m.texture is not None and scene.uvs is not None:
+            h, w = m.texture.shape[:2]
+            tex_offset[i], tex_size[i] = off, (w, h)
+            chunks.append(m.texture.reshape(-1, 3).astype(np.float32))
+            off += w * h
+    tex_data = np.concatenate(chunks) if chunks else np.zeros((1, 3), np.float32)
+    uvs = scene.uvs[scene.triangles].astype(np.float64) if scene.uvs is not None \
+        else np.zeros((len(area), 3, 2))
+    lights = scene.lights
+    sky = scene.sky
+    sky_mode = SKY_NONE if sky is None else (SKY_HEMISPHERE if sky.hemisphere else SKY_SPHERE)
+    arrays = SurfaceArrays(
+        tri_material=mids.astype(np.int32), albedo=scene.albedo.astype(np.float64), emission=emission,
+        double_sided=scene.double_sided, corners=np.ascontiguousarray(corners), tri_area=area, emitters=emitters,
+        emitter_cdf=cdf.astype(np.float64), emitter_prob=prob, tex_offset=tex_offset, tex_size=tex_size,
+        tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
+        light_kind=np.array([KIND_CODE[l.kind] for l in lights], np.int32),
+        light_pos=np.array([l.position for l in lights], np.float64).reshape(-1, 3),
+        light_dir=np.array([l.direction for l in lights], np.float64).reshape(-1, 3),
+        light_intensity=np.array([l.intensity for l in lights], np.float64).reshape(-1, 3),
+        light_cones=np.array([(math.cos(l.inner_cone), math.cos(l.outer_cone)) for l in lights],
+                             np.float64).reshape(-1, 2),
+        sky_radiance=np.zeros(3) if sky is None else np.asarray(sky.radiance, np.float64).reshape(3),
+        sky_mode=sky_mode, sky_up=UP.astype(np.float64))
+    return Surfaces(arrays, power.sum(axis=0), float(np.abs(scene.vertices).max()) or 1.0)
+
+
+@njit(cache=True)
+def albedo_at(surf, tri, b1, b2):
+    """Albedo (r, g, b) at barycentrics (b1, b2) of scene triangle `tri`:
+    the material factor times its texture (nearest texel, wrapped)."""
+    mat = surf.tri_material[tri]
+    alb = surf.albedo
+    r, g, b = alb[mat, 0], alb[mat, 1], alb[mat, 2]
+    off = surf.tex_offset[mat]
+    if off >= 0:
+        uv = surf.uvs
+        w, h = surf.tex_size[mat, 0], surf.tex_size[mat, 1]
+        b0 = 1.0 - b1 - b2
+        u = b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]
+        v = b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]
+        x = int(math.floor((u - math.floor(u)) * w)) % w
+        y = int(math.floor((v - math.floor(v)) * h)) % h
+        t = surf.tex_data[off + y * w + x]
+        r, g, b = r * t[0], g * t[1], b * t[2]
+    return r, g, b
+
+
+@njit(cache=True, inline="always")
+def triangle_normal(corners, tri):
+    """Unit normal of triangle `tri` of corners (nt, 3, 3), front by its
+    winding (counter-clockwise seen from the front)."""
+    ax, ay, az = corners[tri, 1, 0] - corners[tri, 0, 0], corners[tri, 1, 1] - corners[tri, 0, 1], \
+        corners[tri, 1, 2] - corners[tri, 0, 2]
+    bx, by, bz = corners[tri, 2, 0] - corners[tri, 0, 0], corners[tri, 2, 1] - corners[tri, 0, 1], \
+        corners[tri, 2, 2] - corners[tri, 0, 2]
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx / ln, ny / ln, nz / ln
+
+
+@njit(cache=True)
+def sample_emitter(surf, u_tri, u1, u2):
+    """A point on the area emitters from three uniform numbers: the triangle
+    drawn by power (u_tri), the point uniform on it (u1, u2). Returns
+    (tri, px, py, pz, p_tri): p_tri the probability of that triangle (the
+    point's density is p_tri / area)."""
+    k = sample_cdf(surf.emitter_cdf, u_tri)
+    tri = surf.emitters[k]
+    b1, b2 = triangle_point(u1, u2)
+    c = surf.corners
+    b0 = 1.0 - b1 - b2
+    px = b0 * c[tri, 0, 0] + b1 * c[tri, 1, 0] + b2 * c[tri, 2, 0]
+    py = b0 * c[tri, 0, 1] + b1 * c[tri, 1, 1] + b2 * c[tri, 2, 1]
+    pz = b0 * c[tri, 0, 2] + b1 * c[tri, 1, 2] + b2 * c[tri, 2, 2]
+    return tri, px, py, pz, surf.emitter_prob[tri]
+
+
+@njit(cache=True, inline="always")
+def spot_falloff(cos_axis, cos_inner, cos_outer):
+    """glTF KHR_lights_punctual's spot attenuation at cos_axis (the cosine
+    between the light's axis and the direction to the point): a smooth
+    step from the outer cone to the inner one, squared."""
+    a = (cos_axis - cos_outer) / max(cos_inner - cos_outer, 1e-4)
+    a = min(max(a, 0.0), 1.0)
+    return a * a
+
+
+@njit(cache=True)
+def punctual_irradiance(surf, i, px, py, pz, nx, ny, nz):
+    """Irradiance (r, g, b) from punctual light i at p with normal n, and the
+    shadow ray (dx, dy, dz, distance) to test; zero if it faces away.
+    Point: I cos / r^2; spot: times spot_falloff; directional: E cos."""
+    kind = surf.light_kind[i]
+    pos, ldir, inten, cones = surf.light_pos, surf.light_dir, surf.light_intensity, surf.light_cones
+    if kind == LIGHT_DIRECTIONAL:
+        dx, dy, dz = -ldir[i, 0], -ldir[i, 1], -ldir[i, 2]
+        cos = nx * dx + ny * dy + nz * dz
+        if cos <= 0.0:
+            return 0.0, 0.0, 0.0, dx, dy, dz, 0.0
+        return inten[i, 0] * cos, inten[i, 1] * cos, inten[i, 2] * cos, dx, dy, dz, np.inf
+    dx, dy, dz = pos[i, 0] - px, pos[i, 1] - py, pos[i, 2] - pz
+    d2 = dx * dx + dy * dy + dz * dz
+    dist = math.sqrt(d2)
+    if dist == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0
+    dx, dy, dz = dx / dist, dy / dist, dz / dist
+    cos = nx * dx + ny * dy + nz * dz
+    if cos <= 0.0:
+        return 0.0, 0.0, 0.0, dx, dy, dz, 0.0
+    f = cos / d2
+    if kind == LIGHT_SPOT:
+        f *= spot_falloff(-(dx * ldir[i, 0] + dy * ldir[i, 1] + dz * ldir[i, 2]), cones[i, 0], cones[i, 1])
+    return inten[i, 0] * f, inten[i, 1] * f, inten[i, 2] * f, dx, dy, dz, dist
+
+
+@njit(cache=True)
+def sky_radiance(surf, wx, wy, wz):
+    """Radiance (r, g, b) the sky sends along -w, w the unit direction towards
+    the sky: its radiance where w lies in its domain, else 0."""
+    mode = surf.sky_mode
+    if mode == SKY_NONE:
+        return 0.0, 0.0, 0.0
+    if mode == SKY_HEMISPHERE:
+        up = surf.sky_up
+        if wx * up[0] + wy * up[1] + wz * up[2] <= 0.0:
+            return 0.0, 0.0, 0.0
+    L = surf.sky_radiance
+    return L[0], L[1], L[2]
+
+
+def sky_solid_angle(sky_mode: int) -> float:
+    """Solid angle the sky covers, sr."""
+    return {SKY_NONE: 0.0, SKY_HEMISPHERE: 2 * np.pi, SKY_SPHERE: 4 * np.pi}[sky_mode]

@@ -1,0 +1,289 @@
+"""The visibility rule of the linear propagation (docs/design.md section 4):
+what a voxel met on a digital line does to the voxels waiting on it.
+
+A voxel with n . s > 0 starts a ray along +s and waits on the line (its
+record in the line's waiting list). For each next voxel y, each waiting x
+is tested on its own, with d = (c_x - c_y) . n_y, how far x is in front of
+y's plane (lengths in cells):
+
+- `front_outcome`: y faces the rays (n_y . s < 0). x with d >= -tau
+  gathers B(y) and leaves the list; x behind y's plane moves away from it
+  and keeps waiting. Extra tests, each for a case the tau rule alone gets
+  wrong:
+  * a face of a two-sided sheet is seen from in front only (d >= 0), and
+    never by its sheet's other face (`back_to_back`): the two faces lie at
+    one centroid;
+  * another surface standing between x and y (`hidden`): one crossing y's
+    cell (`separated`, a wall standing on a floor), one that cut x's or
+    y's pieces (`cut_between`, a floor running under a wall), or y's own
+    plane cutting x's cell (`cut_by`);
+  * a surface the line ran along after x joined (`across`, a line a cell
+    thick passing a wall inside the wall's cells).
+- `hits_back`: y turns its back (n_y . s > 0). x with d < -tau hits that
+  back: it gathers 0 and leaves, unless x and y, or the voxel z last added
+  to the list and y, form a convex edge (`convex_edge`: each just behind
+  the other's plane, within kappa). Then y joins the list.
+- a voxel parallel to the line (n_y . s = 0) neither sends nor receives;
+  `passes_parallel` notes it in the records of the voxels it separates.
+- `order_cell`: voxels of one cell in order along the ray; on a tie a +1
+  voxel before a -1 (a box resting on a floor), but a sheet's two faces
+  -1 first (back to back).
+
+The sweep (sweep.py) walks the lines and their waiting lists and asks
+these functions what each pair does; what makes it fast (prefetching, the
+ring of hits, stamped tables, the record pool, the lists' bounds) lives
+there and in records.py. (The per-pair functions take no loops: a numba
+function with arrays and a loop, inlined into the sweep, keeps reference
+counts alive across its loop, which made the sweep 2x slower.)
+"""
+import numpy as np
+from numba import njit
+
+from ..voxels.tolerances import SAME_PLANE_COS, SHEET_BACK_COS
+from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y,
+                      P_Z, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, cut_row, cut_side, is_sheet)
+
+CUT_REACH = 3.0        # cells around a cut voxel's cell where its cutting surface is taken to stand
+SEGMENT_REACH = 0.5    # cells beyond y's cell where a surface crossing it is taken to stand (the 26-connected
+#                        line may step past the cell where it crosses)
+FACES_AWAY = -0.5      # a voxel on a cutting surface faces away from the cut part below this cosine
+
+
+
+@njit(cache=True)
+def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2):
+    """Is y hidden from x by another voxel q of y's cell? True when q's plane
+    lies between them (beyond tau on each side), the segment from x's
+    centroid to y's crosses that plane within SEGMENT_REACH of y's cell, on
+    the side of y's plane where q's piece is: a surface crossing the cell (a
+    wall standing on a floor) is in the way."""
+    for i in range(m):
+        e = buf[i]
+        q = e if e >= 0 else -e - 1
+        if q == y:
+            continue
+        sx = sy = 0.0
+        for c in range(3):
+            nq = float(pos[q, P_NX + c])
+            sx += (float(px[x, P_X + c]) - float(pos[q, P_X + c])) * nq
+            sy += (float(pos[y, P_X + c]) - float(pos[q, P_X + c])) * nq
+        if (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h):
+            lam = sx / (sx - sy)
+            x0, x1, x2 = float(px[x, P_X]), float(px[x, P_Y]), float(px[x, P_Z])
+            y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
+            p0 = x0 + (y0 - x0) * lam
+            p1 = x1 + (y1 - x1) * lam
+            p2 = x2 + (y2 - x2) * lam
+            r = SEGMENT_REACH
+            if lo0 - r <= p0 <= lo0 + 1.0 + r and lo1 - r <= p1 <= lo1 + 1.0 + r and lo2 - r <= p2 <= lo2 + 1.0 + r:
+                # q's piece stands where the segment crosses: on the same side
+                # of y's plane as q (a wall rising from a floor), not behind it
+                # (the side of a box under its top: a convex edge)
+                n0, n1, n2 = float(pos[y, P_NX]), float(pos[y, P_NY]), float(pos[y, P_NZ])
+                pside = (p0 - y0) * n0 + (p1 - y1) * n1 + (p2 - y2) * n2
+                qside = (float(pos[q, P_X]) - y0) * n0 + (float(pos[q, P_Y]) - y1) * n1 + \
+                    (float(pos[q, P_Z]) - y2) * n2
+                if pside * qside > 0.0:
+                    return True
+    return False
+
+
+@njit(cache=True)
+def cut_by(px, x, pos, y, cutp, tau_h):
+    """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
+    Then x, behind y's plane even within tau, sees y's back, not its face."""
+    j = cut_row(px, x)
+    n0, n1, n2 = float(pos[y, P_NX]), float(pos[y, P_NY]), float(pos[y, P_NZ])
+    dot = cutp[j, C_NX] * n0 + cutp[j, C_NY] * n1 + cutp[j, C_NZ] * n2
+    if abs(dot) <= SAME_PLANE_COS:
+        return False
+    dy = float(pos[y, P_X]) * n0 + float(pos[y, P_Y]) * n1 + float(pos[y, P_Z]) * n2
+    return abs(cutp[j, C_D] - dot * dy) < tau_h
+
+
+@njit(cache=True)
+def cut_between(pa, a, pb, b, cutp, tau_h):
+    """Voxel a was made by cutting its pieces with another surface's plane
+    (a wall standing on a floor, a floor running under a wall): if b lies
+    on the other side of that plane and the segment a-b crosses it within
+    CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
+    surface runs past both ends), that surface stands between them."""
+    if pa[a, P_CUT] == 0.0:
+        return False
+    sign = cut_side(pa, a)
+    j = cut_row(pa, a)
+    nx, ny, nz, d = cutp[j, C_NX], cutp[j, C_NY], cutp[j, C_NZ], cutp[j, C_D]
+    a0, a1, a2 = float(pa[a, P_X]), float(pa[a, P_Y]), float(pa[a, P_Z])
+    b0, b1, b2 = float(pb[b, P_X]), float(pb[b, P_Y]), float(pb[b, P_Z])
+    sa = a0 * nx + a1 * ny + a2 * nz - d
+    sb = b0 * nx + b1 * ny + b2 * nz - d
+    if abs(sb) <= tau_h:
+        # b lies on that surface (a face of it, or of a sheet along it): the side it faces
+        facing = float(pb[b, P_NX]) * nx + float(pb[b, P_NY]) * ny + float(pb[b, P_NZ]) * nz
+        return facing * sign < FACES_AWAY
+    if sb * sign >= -tau_h or sa == sb:
+        return False
+    if pb[b, P_CUT] != 0.0:
+        jb = cut_row(pb, b)
+        dot = nx * cutp[jb, C_NX] + ny * cutp[jb, C_NY] + nz * cutp[jb, C_NZ]
+        if abs(dot) > SAME_PLANE_COS and abs(d - dot * cutp[jb, C_D]) < tau_h:
+            return True
+    lam = sa / (sa - sb)
+    p0 = a0 + (b0 - a0) * lam
+    p1 = a1 + (b1 - a1) * lam
+    p2 = a2 + (b2 - a2) * lam
+    return cutp[j, C_CX] - CUT_REACH <= p0 <= cutp[j, C_CX] + 1.0 + CUT_REACH and \
+        cutp[j, C_CY] - CUT_REACH <= p1 <= cutp[j, C_CY] + 1.0 + CUT_REACH and \
+        cutp[j, C_CZ] - CUT_REACH <= p2 <= cutp[j, C_CZ] + 1.0 + CUT_REACH
+
+
+@njit(cache=True)
+def passes_parallel(w, pos, j, rec, recf, tau_h):
+    """The line passes voxel w, parallel to it: every waiting voxel (list
+    from record j) beyond tau of w's plane remembers w (the last such)."""
+    w0, w1, w2 = float(pos[w, P_X]), float(pos[w, P_Y]), float(pos[w, P_Z])
+    n0, n1, n2 = float(pos[w, P_NX]), float(pos[w, P_NY]), float(pos[w, P_NZ])
+    while j != EMPTY:
+        jr = np.uint64(REC * j)
+        s = (float(recf[jr + R_X]) - w0) * n0 + (float(recf[jr + R_Y]) - w1) * n1 + \
+            (float(recf[jr + R_Z]) - w2) * n2
+        if abs(s) > tau_h:
+            rec[jr + R_PASSED] = w
+        j = np.int64(rec[jr + R_NEXT])
+
+
+@njit(cache=True)
+def across(rec, recf, jr, pos, y, tau_h):
+    """Is y beyond tau on the other side of the plane of the surface the
+    line ran along after the waiting voxel x (record at jr) joined it? A
+    line parallel to a wall, a cell thick, can pass from one side of the
+    wall to the other inside the wall's cells (a lid's inner edge looking
+    down along the box's wall, the floor just outside it)."""
+    w = np.int64(rec[jr + R_PASSED])
+    w0, w1, w2 = float(pos[w, P_X]), float(pos[w, P_Y]), float(pos[w, P_Z])
+    n0, n1, n2 = float(pos[w, P_NX]), float(pos[w, P_NY]), float(pos[w, P_NZ])
+    sx = (float(recf[jr + R_X]) - w0) * n0 + (float(recf[jr + R_Y]) - w1) * n1 + \
+        (float(recf[jr + R_Z]) - w2) * n2
+    sy = (float(pos[y, P_X]) - w0) * n0 + (float(pos[y, P_Y]) - w1) * n1 + (float(pos[y, P_Z]) - w2) * n2
+    return (sx > tau_h and sy < -tau_h) or (sx < -tau_h and sy > tau_h)
+
+
+@njit(cache=True)
+def back_to_back(rec, recf, jr, pos_all, pos, y):
+    """Is y, facing the waiting voxel x (record at jr) within tau of x's
+    plane, the back of x's own sheet (both faces of two-sided surfaces, with
+    normals opposite within SHEET_BACK_COS: on a curved sheet the faces in
+    one cell can come from different pieces)? Then x does not see it: a
+    digital line a cell thick can meet the sheet's other face in the next
+    cell before it leaves the sheet's plane."""
+    dot = float(recf[jr + R_NX]) * float(pos[y, P_NX]) + float(recf[jr + R_NY]) * float(pos[y, P_NY]) + \
+        float(recf[jr + R_NZ]) * float(pos[y, P_NZ])
+    if dot > SHEET_BACK_COS:
+        return False
+    xe = np.int64(rec[jr + R_VOXEL])
+    x = xe if xe >= 0 else -xe - 1
+    return is_sheet(pos, y) and is_sheet(pos_all, x)
+
+
+@njit(cache=True)
+def order_cell(a, m, pos, ux, uy, uz, buf, bkey):
+    """The m voxels of a cell from a, in order along the sweep, into buf as
+    v (n.s > 0) or -v-1. Ties (the same centroid): +1 before -1, a box
+    resting on a floor (the floor's ray meets the box's bottom); but the two
+    faces of a sheet come -1 first, back to back (the ray from behind meets
+    the face on its side, the face on the other side sends its ray on)."""
+    for i in range(m):
+        v = a + i
+        t = float(pos[v, P_X]) * ux + float(pos[v, P_Y]) * uy + float(pos[v, P_Z]) * uz
+        o = float(pos[v, P_NX]) * ux + float(pos[v, P_NY]) * uy + float(pos[v, P_NZ]) * uz
+        late = (o > 0) == is_sheet(pos, v)  # on a tie, after the others
+        j = i
+        while j > 0:
+            if bkey[j - 1] < t:
+                break
+            if bkey[j - 1] == t:
+                e = buf[j - 1]
+                q = e if e >= 0 else -e - 1
+                if late or (e >= 0) != is_sheet(pos, q):
+                    break
+            bkey[j] = bkey[j - 1]
+            buf[j] = buf[j - 1]
+            j -= 1
+        bkey[j] = t
+        buf[j] = v if o > 0 else -v - 1  # the sign carries the orientation
+
+
+@njit(cache=True)
+def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h):
+    """Is y, facing x's waiting ray within tau, hidden from x by another
+    surface: one crossing y's cell, or one that cut x's or y's pieces?"""
+    if m > 1 and separated(px, x, pos, y, buf, m, tau_h, float(gcell[g, 0]), float(gcell[g, 1]),
+                           float(gcell[g, 2])):
+        return True
+    if xcut or ycut:
+        return cut_between(pos, y, px, x, cutp, tau_h) or cut_between(px, x, pos, y, cutp, tau_h) or \
+            (d < 0.0 and xcut and cut_by(px, x, pos, y, cutp, tau_h))
+    return False
+
+
+@njit(cache=True)
+def convex_edge(z, y, pos, kappa_h):
+    """Do z (the voxel last added to the line) and y, which turns its back,
+    form a convex edge: each just behind the other's plane, within kappa?"""
+    z0, z1, z2 = float(pos[z, P_X]), float(pos[z, P_Y]), float(pos[z, P_Z])
+    y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
+    dz = (z0 - y0) * float(pos[y, P_NX]) + (z1 - y1) * float(pos[y, P_NY]) + (z2 - y2) * float(pos[y, P_NZ])
+    ez = (y0 - z0) * float(pos[z, P_NX]) + (y1 - z1) * float(pos[z, P_NY]) + (y2 - z2) * float(pos[z, P_NZ])
+    return dz < 0.0 and ez < 0.0 and dz >= -kappa_h
+
+
+WAIT, GATHER, HIDDEN, CHECK = 0, 1, 2, 3   # what a waiting voxel does when a voxel facing it comes
+
+
+@njit(cache=True, inline="always")
+def front_min(pos, yr, tau_h):
+    """How far behind the plane of y (facing the rays; its row at flat
+    offset yr) a waiting voxel may lie and still see it: tau, or 0 for a
+    face of a sheet (within tau behind it, its other face is the one facing
+    the waiting voxel)."""
+    return 0.0 if pos[yr + P_SHEET] != 0.0 else -tau_h
+
+
+@njit(cache=True, inline="always")
+def front_outcome(d, dmin, tau_h, m, xe, ycut, passed):
+    """y faces the rays (n_y . s < 0); x waits, d = (c_x - c_y) . n_y, xe its
+    record's voxel (negative: its pieces were cut), m the voxels of y's cell,
+    passed the surface along the line x passed (EMPTY: none). Returns WAIT
+    (x lies behind y's plane: it moves away from it), GATHER (x sees y), or
+    CHECK: y may be the back of x's own sheet, or hidden from x by another
+    surface; `front_check` decides."""
+    if d < dmin:
+        return WAIT
+    if (dmin == 0.0 and d <= tau_h) or m > 1 or xe < 0 or ycut or passed != EMPTY:
+        return CHECK
+    return GATHER
+
+
+@njit(cache=True)
+def front_check(d, dmin, x, xe, y, m, ycut, g, rec, recf, jr, pos_all, pos2, buf, gcell, cutp, tau_h):
+    """The rarer cases of front_outcome: WAIT when y is the back of x's own
+    sheet, HIDDEN when another surface stands between them (x leaves the
+    list with nothing), else GATHER."""
+    if dmin == 0.0 and d <= tau_h and back_to_back(rec, recf, jr, pos_all, pos2, y):
+        return WAIT
+    if not (m == 1 and xe >= 0 and not ycut) and hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell,
+                                                         cutp, tau_h):
+        return HIDDEN
+    if rec[jr + R_PASSED] != EMPTY and across(rec, recf, jr, pos2, y, tau_h):
+        return HIDDEN
+    return GATHER
+
+
+@njit(cache=True, inline="always")
+def hits_back(d, ex, z_edge, tau_h, kappa_h):
+    """y turns its back (n_y . s > 0); x waits, d = (c_x - c_y) . n_y and
+    ex = (c_y - c_x) . n_x. Does x hit y's back (gather nothing, leave)? Yes
+    when x lies beyond tau behind y's plane, unless the voxel last added to
+    the list and y form a convex edge (z_edge), or x and y do (each just
+    behind the other's plane, within kappa)."""
+    return d < -tau_h and not z_edge and not (ex < 0.0 and d >= -kappa_h)

@@ -1,0 +1,62 @@
+"""Texture-aware albedo of a piece: the base-colour texture averaged over
+the piece, not one sample (docs/design.md section 2)."""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..scene.surfaces import albedo_at
+from .clip import side_axis
+
+@njit(cache=True, parallel=True)
+def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
+    """Albedo of each piece averaged over the piece (docs/design.md section 2:
+    texture-aware, not one sample): samples^2 points of the R2 low-
+    discrepancy sequence (Roberts 2018; a regular grid aliases with regular
+    textures) over the cell's face across the triangle's dominant axis,
+    projected on the triangle's plane, keeping the points inside both the
+    triangle and the cell."""
+    n = piece_tri.shape[0]
+    out = np.zeros((n, 3))
+    for p in prange(n):
+        t = piece_tri[p]
+        v0 = corners[t, 0]
+        e1 = corners[t, 1] - v0
+        e2 = corners[t, 2] - v0
+        nx, ny, nz = e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]
+        nrm = np.array([nx, ny, nz])
+        k = side_axis(nrm)
+        ia, ja = (k + 1) % 3, (k + 2) % 3
+        d = nrm[0] * v0[0] + nrm[1] * v0[1] + nrm[2] * v0[2]
+        # barycentric solve in the projection along k
+        a11, a12, a21, a22 = e1[ia], e2[ia], e1[ja], e2[ja]
+        det = a11 * a22 - a12 * a21
+        sr = sg = sb = 0.0
+        cnt = 0
+        for si in range(samples * samples):
+            ra = 0.5 + si * 0.7548776662466927
+            rb = 0.5 + si * 0.5698402909980532
+            ra -= math.floor(ra)
+            rb -= math.floor(rb)
+            q = np.empty(3)
+            q[ia] = origin[ia] + (piece_cell[p, ia] + ra) * h
+            q[ja] = origin[ja] + (piece_cell[p, ja] + rb) * h
+            q[k] = (d - nrm[ia] * q[ia] - nrm[ja] * q[ja]) / nrm[k]
+            ck = (q[k] - origin[k]) / h - piece_cell[p, k]
+            if ck < 0.0 or ck > 1.0:
+                continue
+            ri, rj = q[ia] - v0[ia], q[ja] - v0[ja]
+            b1 = (ri * a22 - rj * a12) / det
+            b2 = (a11 * rj - a21 * ri) / det
+            if b1 < 0.0 or b2 < 0.0 or b1 + b2 > 1.0:
+                continue
+            r, g, b = albedo_at(surf, t, b1, b2)
+            sr += r
+            sg += g
+            sb += b
+            cnt += 1
+        if cnt == 0:  # a sliver between the sample points: the triangle's centre
+            r, g, b = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
+            sr, sg, sb, cnt = r, g, b, 1
+        out[p, 0], out[p, 1], out[p, 2] = sr / cnt, sg / cnt, sb / cnt
+    return out

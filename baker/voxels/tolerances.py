@@ -1,0 +1,16 @@
+"""Named tolerances of the voxel geometry, one per concept, used by the
+voxelization and by the propagation's visibility rule alike. Lengths and
+areas in cells (grid units); cosines between unit normals.
+"""
+
+SHEET_GAP = 0.1          # pieces of one facing on planes further apart than this are separate voxels (sheets)
+MIN_SPLIT_PART = 1e-6    # cells^2: a piece is cut by another surface's plane when both parts are larger
+MIN_SEPARATION = 0.01    # pieces this far on both sides of a surface's plane are told apart by it
+MIN_PIECE_AREA = 1e-14   # cells^2: below this a clipped piece is rounding noise (slivers above it are kept: a
+#                          plane passing 1e-6 cell from a corner still separates the lines there)
+SHEET_BACK_COS = -0.9    # normals this opposite (within 25 degrees) are the two faces of one double-sided
+#                          surface, not one surface crossing the other: a curved sheet's faces in a cell can come
+#                          from different triangles, and a digital line reaches its other face in the next cell
+PARALLEL_COS = 0.9       # |cos| at least this: the planes are parallel (one does not cut or separate the other),
+#                          and neighbouring voxels at least this aligned lie on the same surface
+SAME_PLANE_COS = 0.999   # |cos| above this, with offsets within tau: the same plane

@@ -1,0 +1,369 @@
+"""Sparse surface voxelization (docs/design.md section 2).
+
+One voxel per (cell, facing, sheet): the exact pieces of the scene's
+triangles clipped to a cell, grouped by the side they face (dominant axis
+and sign of the normal) and split into sheets when pieces lie on planes
+more than SHEET_GAP apart. Only surface cells exist: memory follows surface
+area / h^2, never the bounding volume. The supercover of every triangle
+(every cell its plane crosses with positive area) is 26-separating.
+
+`voxelize` runs these steps, each a function below:
+
+1. grid: cell size and extent (`grid_for`);
+2. budget: refuse before allocating when the voxels cannot fit
+   (`check_budget`, an O(triangles) lower bound first);
+3. clip: every triangle side clipped to every cell its plane crosses
+   (`clip_sides`);
+4. straddlers: a piece that another surface's plane cuts in two inside
+   the cell (a floor running under a wall) becomes two parts
+   (`cut_straddlers`);
+5. crossed cells: every piece of a cell that a surface crosses learns its
+   side of that surface (`mark_crossed_cells`);
+6. sheets: pieces merge into voxels per (cell, facing, sheet, side)
+   (`group_pieces`);
+7. sums: area, centroid, normal, albedo, emission per voxel (`voxel_sums`);
+8. lookup: (triangle side, cell) -> voxel, for photons and camera rays
+   (`piece_lookup`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import BudgetError
+from .albedo import textured_albedo
+from .cells import cell_runs, find_straddlers, merge_sheets, separating_planes, side_signatures, split_pieces
+from .clip import clip_pieces, count_candidates
+from .tolerances import MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP
+
+BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
+BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
+MAX_CELLS_PER_AXIS = 2 ** 21
+
+
+@dataclass(frozen=True)
+class Voxels:
+    """The voxel set, sorted by (cell key, facing, sheet).
+
+    origin (3,) float64 and cell_size h: cell (i, j, k) spans
+    origin + h * [(i, j, k), (i+1, j+1, k+1)]; dims (3,) int64.
+    cell (n, 3) int32; facing (n,) int8 (0..5 = +x,-x,+y,-y,+z,-z);
+    key (n,) int64 = (i * dims[1] + j) * dims[2] + k;
+    area (n,) float64 (scene units^2); normal (n, 3) unit, area-weighted;
+    centroid (n, 3) area-weighted, a point on the surface (scene units);
+    albedo (n, 3); emission (n, 3) emitted radiosity E = pi L_e (W/m^2);
+    material (n,) int32 of the largest piece.
+    """
+    origin: np.ndarray
+    cell_size: float
+    dims: np.ndarray
+    cell: np.ndarray
+    facing: np.ndarray
+    key: np.ndarray
+    area: np.ndarray
+    normal: np.ndarray
+    centroid: np.ndarray
+    albedo: np.ndarray
+    emission: np.ndarray
+    material: np.ndarray
+    cut_plane: np.ndarray     # (n, 4) float32 plane of the surface that cut the voxel's pieces: normal, and offset
+    #                           in grid units relative to the voxel's cell (n . (g - cell) = offset)
+    cut_sign: np.ndarray      # (n,) int8 +1 / -1: the voxel lies in front of / behind it; 0: not cut
+    two_sided: np.ndarray     # (n,) bool: its largest piece is double-sided (a sheet: its back is the voxel
+    #                           of the other facing in the cell, at the same centroid)
+    piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
+    piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
+    piece_plane: np.ndarray   # (m, 4) float32 plane that cut a piece in two (as cut_plane, relative to its cell)
+    piece_sign: np.ndarray    # (m,) int8 +1 / -1: the part in front of / behind that plane; 0: not cut
+    side_start: np.ndarray    # (ns + 1,) pieces of side s are side_start[s] .. side_start[s+1] - 1
+    back_side: np.ndarray     # (nt,) int32 side index of a triangle's back (-1: one-sided)
+
+    def __len__(self):
+        return len(self.area)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
+                                                     "albedo", "emission", "material", "cut_plane", "cut_sign",
+                                                     "two_sided", "piece_key", "piece_voxel", "piece_plane",
+                                                     "piece_sign", "side_start", "back_side"))
+
+
+@dataclass(frozen=True)
+class Grid:
+    """origin (3,) float64, cell size h (scene units), dims (3,) int64 cells."""
+    origin: np.ndarray
+    h: float
+    dims: np.ndarray
+
+
+@dataclass
+class Pieces:
+    """Triangle sides clipped to cells, in grid units: cell (m, 3) int32,
+    area (m,) cells^2, centroid (m, 3) area-weighted sums, normal (m, 3)
+    unit, side (m,) int32, and (after step 4/5) plane (m, 4) of a surface
+    that cut or crosses the piece's cell with sign (m,) int8 its side."""
+    cell: np.ndarray
+    area: np.ndarray
+    centroid: np.ndarray
+    normal: np.ndarray
+    side: np.ndarray
+    plane: np.ndarray | None = None
+    sign: np.ndarray | None = None
+
+    def keys_and_facings(self, dims):
+        """(cell key (m,) int64, facing (m,) int8, dominant axis (m,))."""
+        k = (self.cell[:, 0].astype(np.int64) * dims[1] + self.cell[:, 1]) * dims[2] + self.cell[:, 2]
+        ax = np.argmax(np.abs(self.normal), axis=1)
+        return k, (2 * ax + (self.normal[np.arange(len(ax)), ax] < 0)).astype(np.int8), ax
+
+
+def grid_for(scene, resolution: int = 64, cell_size: float = 0.0) -> Grid:
+    """Cells of size h (cell_size, or the longest axis / resolution) with one
+    cell of margin on every side."""
+    lo, hi = scene.bounds()
+    extent = float((hi - lo).max())
+    if extent <= 0:
+        extent = 1.0
+    h = float(cell_size) if cell_size and cell_size > 0 else extent / int(resolution)
+    origin = lo - h
+    dims = np.floor((hi - lo) / h).astype(np.int64) + 3
+    if np.any(dims >= MAX_CELLS_PER_AXIS):
+        raise BudgetError(f"grid of {dims.tolist()} cells exceeds 2^21 per axis: use a larger cell size",
+                          scene.path)
+    return Grid(origin, h, dims)
+
+
+def _sides(scene):
+    """Triangle sides: (triangle (ns,) int32, sign (ns,) int32 +1 front / -1
+    back); fronts first in triangle order, then the backs of double-sided
+    triangles."""
+    ds = scene.double_sided[scene.material_ids]
+    nt = len(scene.triangles)
+    front = np.arange(nt, dtype=np.int32)
+    back = np.nonzero(ds)[0].astype(np.int32)
+    return np.concatenate([front, back]), np.concatenate([np.ones(nt, np.int32), -np.ones(len(back), np.int32)])
+
+
+def candidate_bound(corners, sides_tri, grid: Grid) -> int:
+    """A lower bound of the candidate cells in O(triangles): each side's
+    area projected on its dominant axis plane, in cells^2 (every column of
+    cells it crosses holds at least one candidate, and the columns cover
+    the projection)."""
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    cross = np.cross(e1, e2)
+    projected = 0.5 * np.abs(cross).max(axis=1) / grid.h ** 2
+    return int(projected[sides_tri].sum())
+
+
+def check_budget(scene, grid: Grid, corners, sides_tri, sides_sign, memory_budget_mb: float):
+    """Candidate cells per side (ns,) int64 (pass 1), after refusing with a
+    BudgetError when the voxelization cannot fit memory_budget_mb: first
+    from the O(triangles) lower bound, so that an absurd resolution is
+    refused at once, then from the exact count."""
+    per = BYTES_PER_CANDIDATE + BYTES_PER_VOXEL
+
+    def refuse(cells, what):
+        need = cells * per / 2 ** 20
+        raise BudgetError(f"voxelization at {grid.dims.max() - 3} cells ({grid.h:.4g} per cell) needs about "
+                          f"{need:.0f} MiB ({what} {cells} candidate cells), over the budget of "
+                          f"{memory_budget_mb:.0f} MiB: lower the resolution or raise the budget", scene.path)
+    low = candidate_bound(corners, sides_tri, grid)
+    if low * per / 2 ** 20 > memory_budget_mb:
+        refuse(low, "at least")
+    counts = count_candidates(corners, sides_tri, sides_sign, grid.origin, 1.0 / grid.h)
+    total = int(counts.sum())
+    if total * per / 2 ** 20 > memory_budget_mb:
+        refuse(total, "")
+    return counts
+
+
+def estimate(scene, resolution=64, cell_size=0.0):
+    """Pass 1 only: (candidate cells, estimated bytes) without allocating pieces."""
+    grid = grid_for(scene, resolution, cell_size)
+    sides_tri, sides_sign = _sides(scene)
+    counts = count_candidates(scene.triangle_corners(), sides_tri, sides_sign, grid.origin, 1.0 / grid.h)
+    total = int(counts.sum())
+    return total, total * (BYTES_PER_CANDIDATE + BYTES_PER_VOXEL)
+
+
+def clip_sides(corners, sides_tri, sides_sign, grid: Grid, counts) -> Pieces:
+    """Step 3: every side clipped to its candidate cells; pieces under
+    MIN_PIECE_AREA (rounding noise) dropped."""
+    total = int(counts.sum())
+    offsets = np.zeros(len(counts), np.int64)
+    np.cumsum(counts[:-1], out=offsets[1:])
+    cell = np.empty((total, 3), np.int32)
+    area = np.empty(total)
+    cen = np.empty((total, 3))
+    nrm = np.empty((total, 3))
+    side = np.empty(total, np.int32)
+    clip_pieces(corners, sides_tri, sides_sign, grid.origin, 1.0 / grid.h, offsets, grid.dims, cell, area, cen, nrm,
+                side)
+    keep = area > MIN_PIECE_AREA
+    return Pieces(cell[keep], area[keep], cen[keep], nrm[keep], side[keep])
+
+
+def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
+    """Step 4: a piece that another surface's plane cuts into two parts of at
+    least MIN_SPLIT_PART (a floor running under a wall) is replaced by its
+    front part (sign +1) and its back part (sign -1, appended), both
+    remembering the plane."""
+    key, facing, _ = pieces.keys_and_facings(grid.dims)
+    by_cell = np.argsort(key, kind="stable")
+    inv_h = 1.0 / grid.h
+    cut = find_straddlers(by_cell, cell_runs(by_cell, key), key, facing, piece_tri, pieces.cell, pieces.area,
+                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART)
+    n0 = len(pieces.area)
+    split = np.nonzero(cut >= 0)[0]
+    plane = np.zeros((n0 + len(split), 4))
+    sign = np.zeros(n0 + len(split), np.int8)
+    if not len(split):
+        return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, plane, sign)
+    extra = np.full(n0, -1, np.int64)
+    extra[split] = n0 + np.arange(len(split))
+    cell = np.concatenate([pieces.cell, pieces.cell[split]])
+    nrm = np.concatenate([pieces.normal, pieces.normal[split]])
+    side = np.concatenate([pieces.side, pieces.side[split]])
+    area = np.concatenate([pieces.area, np.zeros(len(split))])
+    cen = np.concatenate([pieces.centroid, np.zeros((len(split), 3))])
+    split_pieces(cut, piece_tri, cell, area, cen, nrm, corners, grid.origin, inv_h, extra, area, cen, plane, sign)
+    return Pieces(cell, area, cen, nrm, side, plane, sign)
+
+
+def mark_crossed_cells(pieces: Pieces, key, piece_tri):
+    """Step 5: cells crossed by a surface, where a piece was cut (a floor
+    running under a wall) or where a piece's plane separates others (a wall
+    between two floors): every other piece not parallel to that plane takes
+    its side of it (in place), so that its voxel knows the surface stands
+    there (the propagation's cut test, docs/design.md section 4)."""
+    n = len(pieces.area)
+    cell_plane = np.zeros((n, 4))
+    has = np.zeros(n, np.bool_)
+    by_cell = np.argsort(key, kind="stable")
+    runs = cell_runs(by_cell, key)
+    separating_planes(by_cell, runs, piece_tri, pieces.area, pieces.centroid, pieces.normal, MIN_SEPARATION,
+                      cell_plane, has)
+    cut = pieces.sign != 0
+    if cut.any():
+        cut_keys, first = np.unique(key[cut], return_index=True)
+        planes = pieces.plane[cut][first]
+        where = np.minimum(np.searchsorted(cut_keys, key), len(cut_keys) - 1)
+        in_cut = cut_keys[where] == key
+        cell_plane[in_cut] = planes[where[in_cut]]
+        has |= in_cut
+    idx = np.nonzero(has & ~cut)[0]
+    pl = cell_plane[idx]
+    nrm = pieces.normal[idx] / np.linalg.norm(pieces.normal[idx], axis=1, keepdims=True)
+    crossing = np.abs(np.einsum("ij,ij->i", nrm, pl[:, :3])) < PARALLEL_COS  # the crossing surface itself is not cut
+    idx, pl = idx[crossing], pl[crossing]
+    side = np.einsum("ij,ij->i", pieces.centroid[idx] / pieces.area[idx, None], pl[:, :3]) - pl[:, 3]
+    pieces.plane[idx] = pl
+    pieces.sign[idx] = np.where(side >= 0, 1, -1)
+    return by_cell, runs
+
+
+def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs):
+    """Step 6: (order (m,) of the pieces, voxel of each piece in that order
+    (m,) int64). Pieces of a (cell, facing) merge unless another surface of
+    the cell separates them (side signatures), they are the two parts of a
+    cut piece, or their planes lie over SHEET_GAP apart (sheets)."""
+    along = pieces.centroid[np.arange(len(axis)), axis] / pieces.area
+    sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
+    # the two parts of a cut piece never merge: fold the part into the signature
+    group = np.unique(np.stack([sig, pieces.sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
+    order = np.lexsort((along, group, facing, key))
+    vox_of = merge_sheets(order, key, facing, group, along, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
+    return order, vox_of
+
+
+def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corners, grid: Grid, surfaces):
+    """Step 7: per-voxel area, centroid, normal, albedo (texture-aware),
+    emission, material of the largest piece, cell and cut plane, summed in
+    sorted piece order (deterministic). Returns a dict of Voxels fields."""
+    n = int(vox_of[-1]) + 1 if len(vox_of) else 0
+    tri = sides_tri[pieces.side]
+    w = pieces.area[order]
+
+    def per_voxel(values):  # (m, c) piece values in piece order -> (n, c) sums
+        return np.stack([np.bincount(vox_of, weights=values[order, c], minlength=n) for c in range(values.shape[1])],
+                        axis=1)
+    area = np.bincount(vox_of, weights=w, minlength=n)
+    cen = per_voxel(pieces.centroid)
+    nrm = per_voxel(pieces.normal * pieces.area[:, None])
+    mats = scene.material_ids[tri]
+    textured = np.array([m.texture is not None for m in scene.materials]) & (scene.uvs is not None)
+    p_alb = scene.albedo.astype(np.float64)[mats]
+    if textured[mats].any():
+        from ..scene.surfaces import pack
+        surf = surfaces or pack(scene)
+        sel = np.nonzero(textured[mats])[0]
+        p_alb[sel] = textured_albedo(surf.arrays, corners, tri[sel].astype(np.int32),
+                                     pieces.cell[sel].astype(np.int64), grid.origin, grid.h, 4)
+    # a one-sided emitter's back is black: only the front side (sign +1) emits
+    side_emits = (sides_sign[pieces.side] > 0) | scene.double_sided[mats]
+    p_em = np.pi * scene.emission.astype(np.float64)[mats] * side_emits[:, None]
+    alb = per_voxel(p_alb * pieces.area[:, None])
+    em = per_voxel(p_em * pieces.area[:, None])
+    big = np.lexsort((-w, vox_of))  # the largest piece of each voxel first
+    first = np.ones(len(big), bool)
+    first[1:] = vox_of[big[1:]] != vox_of[big[:-1]]
+    material = mats[order][big[first]].astype(np.int32)
+    starts = np.ones(len(vox_of), bool)
+    starts[1:] = vox_of[1:] != vox_of[:-1]
+    cell = pieces.cell[order][starts]
+    nl = np.linalg.norm(nrm, axis=1, keepdims=True)
+    h = grid.h
+    return dict(cell=cell.astype(np.int32), area=area * h * h, normal=np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0),
+                centroid=grid.origin + cen / area[:, None] * h, albedo=alb / area[:, None],
+                emission=em / area[:, None], material=material,
+                cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=pieces.sign[order][starts],
+                two_sided=scene.double_sided[material].astype(bool))
+
+
+def piece_lookup(pieces: Pieces, key, order, vox_of, sides_tri, n_triangles):
+    """Step 8: (side, cell) -> voxel, where a photon or a camera ray that hit
+    a triangle's side in a cell lands, exactly, whatever the sheets and
+    splits. Returns a dict of Voxels fields."""
+    side_sorted = pieces.side[order]
+    key_sorted = key[order]
+    by_side = np.lexsort((key_sorted, side_sorted))
+    ns = len(sides_tri)
+    back_side = np.full(n_triangles, -1, np.int32)
+    back_side[sides_tri[n_triangles:]] = np.arange(n_triangles, ns, dtype=np.int32)
+    return dict(piece_key=key_sorted[by_side], piece_voxel=vox_of[by_side].astype(np.int64),
+                piece_plane=_relative_plane(pieces.plane[order][by_side], pieces.cell[order][by_side]),
+                piece_sign=pieces.sign[order][by_side],
+                side_start=np.searchsorted(side_sorted[by_side], np.arange(ns + 1)).astype(np.int64),
+                back_side=back_side)
+
+
+def _relative_plane(plane, cell):
+    """(normal, offset) in grid units -> float32 (normal, offset - normal . cell):
+    small numbers, exact enough in float32 on any grid."""
+    out = plane.copy()
+    out[:, 3] -= (plane[:, :3] * cell).sum(axis=1)
+    return out.astype(np.float32)
+
+
+def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_mb: float = 8192.0,
+             surfaces=None) -> Voxels:
+    """Scene -> Voxels (the steps of the module docstring). Raises
+    BudgetError (with the estimate) before allocating when the estimate
+    exceeds memory_budget_mb."""
+    grid = grid_for(scene, resolution, cell_size)
+    corners = scene.triangle_corners()
+    sides_tri, sides_sign = _sides(scene)
+    counts = check_budget(scene, grid, corners, sides_tri, sides_sign, memory_budget_mb)
+    pieces = clip_sides(corners, sides_tri, sides_sign, grid, counts)
+    pieces = cut_straddlers(pieces, sides_tri[pieces.side], corners, grid)
+    key, facing, axis = pieces.keys_and_facings(grid.dims)
+    by_cell, runs = mark_crossed_cells(pieces, key, sides_tri[pieces.side])
+    order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs)
+    sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces)
+    lookup = piece_lookup(pieces, key, order, vox_of, sides_tri, len(scene.triangles))
+    starts = np.ones(len(vox_of), bool)
+    starts[1:] = vox_of[1:] != vox_of[:-1]
+    return Voxels(origin=grid.origin, cell_size=grid.h, dims=grid.dims, facing=facing[order][starts],
+                  key=key[order][starts], **sums, **lookup)
