@@ -11,13 +11,17 @@ The library face (the command line `voxbake` is a thin layer over it):
 """
 __version__ = "0.1.0"
 
-from .config import PRESETS, SolverConfig, solver_config
-from .errors import BakeFileError, BudgetError, ConfigError, GLError, SceneError, VoxgiError, VoxgiWarning
-from .render import read_exr, render, write_image
-from .scene import Scene, builtin_scenes, load_scene
-from .solve import Solution, solve
-from .solve.audit import audit
-from .voxels import Voxels, voxelize
+from .startup import hold_interrupts
+
+hold_interrupts()  # a command's Ctrl-C during these imports is answered once the command runs (cli.run)
+
+from .config import PRESETS, SolverConfig, solver_config  # noqa: E402
+from .errors import BakeFileError, BudgetError, ConfigError, GLError, SceneError, VoxgiError, VoxgiWarning  # noqa: E402
+from .render import read_exr, render, write_image  # noqa: E402
+from .scene import Scene, builtin_scenes, load_scene  # noqa: E402
+from .solve import Solution, solve  # noqa: E402
+from .solve.audit import audit  # noqa: E402
+from .voxels import Voxels, voxelize  # noqa: E402
 
 __all__ = ["BakeFileError", "BudgetError", "ConfigError", "GLError", "PRESETS", "Scene", "SceneError", "Solution",
            "SolverConfig", "Voxels", "VoxgiError", "VoxgiWarning", "__version__", "audit", "builtin_scenes",

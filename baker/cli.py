@@ -8,7 +8,6 @@ prints `interrupted: nothing was written` and exits 130.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import warnings
 
@@ -320,6 +319,10 @@ def run(func, *args):
     with exit 2, Ctrl-C with exit 130, our warnings as one line each (other
     libraries' warnings shown as usual), the process's warning hooks put
     back after."""
+    from .startup import release_interrupts
+    if release_interrupts():
+        print("interrupted: nothing was written", file=sys.stderr)
+        return 130
     original = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):

@@ -82,7 +82,7 @@ def main():
     for th in sorted({1, threads}):
         numba.set_num_threads(th)
         dt, transfers = time_gather(sw, len(v), 8, reps=2)  # best of two: this VM's timings vary
-        rows.append(["throughput", f"cornell {big_res} cells", len(v), 1538, th, f"{dt:.2f}",
+        rows.append(["throughput", f"cornell {big_res} cells", len(v), direction_set(8).n_directions, th, f"{dt:.2f}",
                      f"{transfers / dt / 1e6:.1f}"])
     numba.set_num_threads(threads)
     # memory: a full cache-method propagation as solve() runs it (the sweeper, H, current, the
@@ -104,7 +104,7 @@ def main():
     peak = rss_bytes("VmHWM") if reset_ok else base
     prop_per_voxel = (peak - base) / len(v)
     per_voxel = (peak - rss0) / len(v)
-    emit(args, "Linear propagation throughput (one bounce, r = 8, 1538 directions)", rows,
+    emit(args, f"Linear propagation throughput (one bounce, r = 8, {direction_set(8).n_directions} directions)", rows,
          ["what", "scene", "voxels", "directions", "threads", "seconds", "M transfers/s"])
 
     # scaling in N at fixed D, and in D at fixed N
@@ -114,7 +114,7 @@ def main():
         vv = v if res == big_res else voxelize(cornell, res)
         s = sw if res == big_res else LineSweeper(vv)
         dt, tr = time_gather(s, len(vv), 4, reps=2 if len(vv) < 300_000 else 1)
-        rn.append([res, len(vv), 386, f"{dt:.3f}", f"{tr / dt / 1e6:.1f}"])
+        rn.append([res, len(vv), direction_set(4).n_directions, f"{dt:.3f}", f"{tr / dt / 1e6:.1f}"])
         ns.append(len(vv))
         times_n.append(dt)
     slope_n = np.polyfit(np.log(ns), np.log(times_n), 1)[0]
@@ -125,7 +125,7 @@ def main():
     rd, times_d, ds = [], [], []
     for r in ([2, 4, 8] if args.quick else [2, 4, 8, 16]):
         dt, tr = time_gather(swd, len(vd), r, reps=2)
-        nd = 24 * r * r + 2
+        nd = direction_set(r).n_directions
         rd.append([r, nd, len(vd), f"{dt:.3f}", f"{tr / dt / 1e6:.1f}"])
         ds.append(nd)
         times_d.append(dt)

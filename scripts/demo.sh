@@ -10,5 +10,5 @@ mkdir -p out
   -o out/cornell_box.exr --stats out/cornell_box_stats.json
 .venv/bin/voxbake render scenes/cornell_box.glb --method voxels --preset default --width 512 --height 512 \
   -o out/cornell_box_voxels.png --stats out/cornell_box_voxels_stats.json
-.venv/bin/python -c "from baker.images import read_exr, write_image; write_image('out/cornell_box.png', read_exr('out/cornell_box.exr'))"
+.venv/bin/python -c "from baker import read_exr, write_image; write_image('out/cornell_box.png', read_exr('out/cornell_box.exr'))"
 echo "demo: wrote out/cornell_box.png, out/cornell_box.exr, out/cornell_box_voxels.png"

@@ -94,3 +94,44 @@ def test_bvh_structure_invariants():
             cb = tree.child_box[node].astype(float)
             stack += [(node + 1, boxes + [cb[:6]]), (tree.right[node], boxes + [cb[6:]])]
     assert (seen == 1).all()
+
+
+def tree_depth(tree):
+    depth, stack = 0, [(0, 0)]
+    while stack:
+        node, d = stack.pop()
+        depth = max(depth, d)
+        if tree.count[node] == 0:
+            stack += [(node + 1, d + 1), (tree.right[node], d + 1)]
+    return depth
+
+
+@pytest.mark.parametrize("kind", ["sizes", "coincident"])
+def test_degenerate_inputs_keep_the_tree_within_the_traversal_stack(kind):
+    """Triangles along a line whose sizes shrink over 200 orders of magnitude
+    (the smaller half rounds to zero area in float32): binned SAH keeps
+    peeling a sliver off the big end, and without a depth bound the tree
+    grew to depth 129, past the traversal's fixed stack of 128 (which the
+    traversal would have written past). Many coincident triangles, plus a
+    few far apart, split by count. Either way the depth stays under the
+    stack and every ray finds what brute force finds."""
+    from baker.kernels.bvh import MAX_SAH_DEPTH, STACK_SIZE
+    rng = np.random.default_rng(5)
+    if kind == "sizes":
+        n = 100_000
+        k = np.arange(n)
+        size = 1e3 * 10.0 ** (-200.0 * k / n)
+        base = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0, 0.5, 0]])
+        corners = base[None] * size[:, None, None] + np.stack([k / n, np.zeros(n), np.zeros(n)], 1)[:, None]
+    else:
+        one = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+        corners = np.concatenate([np.repeat(one[None], 3000, axis=0), random_soup(rng, 5, spread=10)])
+    corners = corners.astype(np.float32).astype(float)
+    tree = bvh_mod.build(corners)
+    depth = tree_depth(tree)
+    assert tree.depth == depth < STACK_SIZE
+    if kind == "sizes":
+        assert depth > MAX_SAH_DEPTH  # the median split had to take over: the input is degenerate as meant
+    o = np.column_stack([rng.uniform(-0.2, 1.2, 60), rng.uniform(-0.3, 0.3, 60), np.full(60, -1.0)])
+    d = np.tile([0.0, 0.0, 1.0], (60, 1)) + rng.normal(0, 0.05, (60, 3))
+    check_against_brute_force(corners, o, d)

@@ -82,3 +82,36 @@ def test_same_image_for_any_thread_count(cornell):
     a = same_for_any_thread_count(lambda: render_pathtrace(tree, surf, cam, 24, 24, 8, seed=9))
     c = render_pathtrace(tree, surf, cam, 24, 24, 8, seed=10)
     assert not np.array_equal(a, c)  # the seed matters, so the equality above means something
+
+
+def sky_scene(tmp_path, hemisphere=True, radiance=2.0, wall=False):
+    from baker.scene import Sky, load_scene
+    b = GltfBuilder()
+    m = b.material("ground", (0.5,) * 3)
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)), m)
+    if wall:  # a wall facing +x, away from the floor's edge: it sees half the upper and half the lower sky
+        b.mesh("wall", *quad((5, -1, -1), (5, 1, -1), (5, 1, 1), (5, -1, 1), facing=(1, 0, 0)), m)
+    b.save(tmp_path / "sky.glb")
+    return load_scene(tmp_path / "sky.glb", sky=Sky(np.full(3, radiance), hemisphere))
+
+
+@pytest.mark.parametrize("hemisphere", [True, False])
+def test_sky_lights_an_open_floor(tmp_path, hemisphere):
+    """A floor under a uniform sky of radiance L sees only sky above it:
+    H = pi L, and every path's one bounce escapes to the sky, so each
+    estimate is rho L exactly. A wall facing sideways sees half of the
+    upper hemisphere (H = pi L / 2), all of a whole-sphere sky (pi L)."""
+    scene = sky_scene(tmp_path, hemisphere, wall=True)
+    est = point_radiance(scene, (0.3, 0.0, -0.2), 64)
+    np.testing.assert_allclose(est, 0.5 * 2.0, rtol=1e-12)
+    tree, surf = prepare(scene)
+    n = 20000
+    o = np.tile([5.25, 0.0, 0.0], (n, 1))
+    d = np.tile([-1.0, 0.0, 0.0], (n, 1))
+    wall = radiance_batch(tree.arrays, surf.arrays, 1e-7 * surf.scale, np.uint64(2), 1, o, d)[:, 0]
+    expected = 0.5 / np.pi * np.pi * 2.0 * (0.5 if hemisphere else 1.0)
+    # each estimate is rho L or 0 (up or down, where the floor is far away): 4.5 sigma of that binomial
+    assert abs(wall.mean() - expected) < 4.5 * wall.std() / np.sqrt(n) + 1e-12
+    sky_seen = radiance_batch(tree.arrays, surf.arrays, 1e-7 * surf.scale, np.uint64(2), 1,
+                              np.array([[0.0, 1.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    np.testing.assert_allclose(sky_seen, 2.0)  # a camera ray into the sky sees it

@@ -1,3 +1,4 @@
+import os
 import subprocess
 import sys
 
@@ -8,6 +9,8 @@ import pytest
 from baker.errors import SceneError
 from baker.scene import load_scene
 from scenes.generate import GltfBuilder, box, cornell_box, quad
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def test_cornell_box_loads_with_published_data(cornell):
@@ -177,3 +180,156 @@ def test_render_refuses_bad_settings_before_work(tmp_path):
                         str(tmp_path / "no" / "x.png")], capture_output=True, text=True)
     assert r.returncode == 2 and "output folder does not exist" in r.stderr
     assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+CORNELL_STYLE_OBJ = """# each object a quad given with negative (relative) indices under o/g/usemtl
+mtllib {lib}
+o floor
+usemtl white
+v 1.0 0.0 0.0
+v 0.0 0.0 0.0
+v 0.0 0.0 1.0
+v 1.0 0.0 1.0
+f -4 -3 -2 -1
+o back_wall
+g walls
+usemtl red
+v 1.0 0.0 1.0
+v 0.0 0.0 1.0
+v 0.0 1.0 1.0
+v 1.0 1.0 1.0
+f -4 -3 -2 -1
+o light
+usemtl light
+v 0.6 0.99 0.4
+v 0.6 0.99 0.6
+v 0.4 0.99 0.6
+v 0.4 0.99 0.4
+f -4 -3 -2 -1
+"""
+
+
+def test_obj_negative_indices_under_groups(tmp_path):
+    """The classic public Cornell box OBJ files give each object as a quad
+    with negative indices under o/g/usemtl: every quad keeps its area (a
+    grouped import once made half of them degenerate and indexed the wrong
+    vertices), and the MTL named with a space in it is read."""
+    (tmp_path / "box materials.mtl").write_text(
+        "newmtl white\nKd 0.7 0.7 0.7\nnewmtl red\nKd 0.6 0.05 0.05\nnewmtl light\nKd 0.8 0.8 0.8\nKe 10 9 8\n")
+    (tmp_path / "box.obj").write_text(CORNELL_STYLE_OBJ.format(lib="box materials.mtl"))
+    s = load_scene(tmp_path / "box.obj")
+    assert len(s.triangles) == 6
+    np.testing.assert_allclose(s.triangle_areas().sum(), 1 + 1 + 0.04, rtol=1e-6)
+    mats = {m.name: m for m in s.materials}
+    np.testing.assert_allclose(mats["light"].emission, [10, 9, 8])
+    np.testing.assert_allclose(mats["red"].albedo, [0.6, 0.05, 0.05])
+    floor = s.material_ids == [m.name for m in s.materials].index("white")
+    assert s.vertices[s.triangles[floor]][:, :, 1].max() == 0  # the floor's own vertices, not another quad's
+
+
+def test_obj_polygons_materials_and_errors(tmp_path):
+    """n-gons (convex: a fan; concave: ear clipping keeps the area), faces
+    before the first usemtl (a default grey), a usemtl no MTL defines, a
+    missing MTL (a warning, not an error), texture coordinates, and an
+    index out of range reported as the file counts (from 1, with its line)."""
+    (tmp_path / "p.obj").write_text(
+        "mtllib nowhere.mtl\n"
+        "v 0 0 0\nv 2 0 0\nv 2 2 0\nv 1 0.5 0\nv 0 2 0\n"      # a concave pentagon (a dart), area 2.5
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0.5 0.5\nvt 0 1\n"
+        "f 1/1 2/2 3/3 4/4 5/5\n"
+        "g roof\nusemtl undefined\n"
+        "v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0.5 1.5 1\nv 0 1 1\n"   # a convex pentagon, area 1.25
+        "f -5 -4 -3 -2 -1\n")
+    with pytest.warns(UserWarning) as rec:
+        s = load_scene(tmp_path / "p.obj")
+    text = " ".join(str(r.message) for r in rec)
+    assert "nowhere.mtl" in text and "not found" in text
+    assert len(s.triangles) == 3 + 3
+    areas = s.triangle_areas()
+    z = s.vertices[s.triangles][:, 0, 2]
+    assert areas[z == 0].sum() == pytest.approx(2.5) and areas[z == 1].sum() == pytest.approx(1.25)
+    assert s.uvs is not None and [m.name for m in s.materials] == ["default", "undefined"]
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
+    with pytest.raises(SceneError, match=r"line 5: vertex index 4 out of range \(3 defined so far"):
+        load_scene(tmp_path / "bad.obj")
+    (tmp_path / "zero.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+    with pytest.raises(SceneError, match="line 4: vertex index 0 out of range"):
+        load_scene(tmp_path / "zero.obj")
+
+
+def test_ignored_material_terms_are_named_once(tmp_path):
+    """A mirror or glass material comes out diffuse: the loader says which
+    terms it ignores, in one warning per file."""
+    (tmp_path / "m.mtl").write_text("newmtl mirror\nKd 0.1 0.1 0.1\nKs 0.9 0.9 0.9\nNs 900\nillum 3\n"
+                                    "newmtl glass\nKd 0.9 0.9 0.9\nd 0.2\nNi 1.5\nnewmtl matte\nKd 0.5 0.5 0.5\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl mirror\nf 1 2 3\n"
+                                    "usemtl glass\nf 1 3 2\nusemtl matte\nf 3 2 1\n")
+    with pytest.warns(UserWarning, match="ignores") as rec:
+        load_scene(tmp_path / "m.obj")
+    notes = [str(r.message) for r in rec if "ignores" in str(r.message)]
+    assert len(notes) == 1
+    assert "specular" in notes[0] and "'mirror'" in notes[0] and "transparency" in notes[0]
+    assert "'glass'" in notes[0] and "matte" not in notes[0]
+    b = GltfBuilder()
+    b.material("plain", (0.5,) * 3)
+    b.mesh("q", *quad((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)), 0)
+    b.doc.materials[0].pbrMetallicRoughness.metallicFactor = 1.0
+    b.doc.materials[0].extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0}}
+    b.save(tmp_path / "metal.glb")
+    with pytest.warns(UserWarning, match=r"ignores metallic.*'plain'.*transmission"):
+        load_scene(tmp_path / "metal.glb")
+
+
+def test_builtin_scenes_by_name(tmp_path):
+    """Commands take a built-in scene by name, from any folder."""
+    from baker.scene import builtin_scenes
+    assert "cornell_box" in builtin_scenes() and "walkthrough" in builtin_scenes()
+    assert len(load_scene("cornell_box").triangles) == 32
+    r = subprocess.run([sys.executable, "-m", "baker", "info", "cornell_box"], capture_output=True, text=True,
+                       cwd=tmp_path, env={**os.environ, "PYTHONPATH": ROOT})
+    assert r.returncode == 0 and "triangles  32" in r.stdout, r.stderr
+    r = subprocess.run([sys.executable, "-m", "baker", "scenes"], capture_output=True, text=True, cwd=tmp_path,
+                       env={**os.environ, "PYTHONPATH": ROOT})
+    assert r.returncode == 0 and "cornell_box" in r.stdout and "furnace_box" in r.stdout
+    with pytest.raises(SceneError, match="built-in scenes: .*cornell_box"):
+        load_scene("cornel_box")
+
+
+def test_automatic_camera_sees_the_inside(tmp_path):
+    """A scene without a camera: an open box (the Cornell box OBJ has no front
+    wall) is seen through its open side, a closed room from inside, an
+    object from outside; each way the image shows lit surfaces."""
+    from baker.render import render
+    from baker.scene import auto_camera
+    (tmp_path / "open.obj").write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0 1 0\nv 1 1 0\nv 1 1 1\nv 0 1 1\n"
+        "f 1 4 3 2\nf 5 6 7 8\nf 1 5 8 4\nf 2 3 7 6\nf 4 8 7 3\n")  # floor, ceiling, two walls, back (z = 1)
+    s = load_scene(tmp_path / "open.obj", lights=[], sky=None)
+    cam = auto_camera(s)
+    assert cam.position[2] < 0 and cam.forward[2] > 0.99  # outside the open side (z = 0), looking in
+    b = GltfBuilder()
+    b.mesh("room", *box((0, 0, 0), (4, 2, 3), inward=True), b.material("m", (0.5,) * 3, emission=(1, 1, 1)))
+    b.save(tmp_path / "room.glb")
+    room = load_scene(tmp_path / "room.glb")
+    cam = room.camera()
+    assert np.all(cam.position > [0, 0, 0]) and np.all(cam.position < [4, 2, 3])  # inside
+    img = render(room, width=16, height=16, spp=1)
+    assert img.min() > 0  # every pixel sees the lit inside, none the outside of a one-sided wall
+
+
+def test_command_line_camera(tmp_path):
+    from baker.scene import adjust_camera, make_camera
+    cam = make_camera("c", (0, 0, 0), (0, 0, 1), (0, 1, 0), np.radians(40))
+    c = adjust_camera(cam, look_from=np.array([1.0, 2.0, 3.0]), look_at=np.array([1.0, 2.0, 10.0]), fov_deg=60)
+    np.testing.assert_allclose(c.position, [1, 2, 3])
+    np.testing.assert_allclose(c.forward, [0, 0, 1])
+    assert c.yfov == pytest.approx(np.radians(60))
+    r = subprocess.run([sys.executable, "-m", "baker", "render", "cornell_box", "--look-from", "0.278,0.273,-0.5",
+                        "--look-at", "0.278,0.273,0", "--fov", "30", "--spp", "1", "--width", "8", "--height", "8",
+                        "-o", str(tmp_path / "c.png"), "--stats", str(tmp_path / "s.json")], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    assert '"camera": "command line"' in (tmp_path / "s.json").read_text()
+    bad = subprocess.run([sys.executable, "-m", "baker", "render", "cornell_box", "--look-from", "1,2", "-o",
+                          str(tmp_path / "x.png")], capture_output=True, text=True)
+    assert bad.returncode == 2 and "X,Y,Z" in bad.stderr

@@ -9,7 +9,8 @@ import pytest
 from baker.config import solver_config
 from baker.solve import solve
 from baker.scene.gltf_write import GltfBuilder
-from scenes.generate import closed_box, emission_test, furnace_box, furnace_sphere, icosphere, thin_wall, two_rooms
+from scenes.generate import (closed_box, emission_test, furnace_box, furnace_obstacles, furnace_sphere, icosphere,
+                             thin_wall, two_rooms)
 from tests.threads import same_for_any_thread_count
 from tests.naive import irradiance_under_rectangle
 
@@ -41,6 +42,27 @@ def test_furnace_sphere(make_scene, rho):
     # one bounce in tiny corner pieces whose lines leave the shell, docs/design.md section 4)
     assert abs(area_mean(sol, b) - 1) < 0.01
     assert b.min() > 0.97 and b.max() < 1.03
+
+
+@pytest.mark.parametrize("rho", [0.5, 0.8])
+def test_furnace_with_obstacles(make_scene, rho):
+    """A closed furnace box with a floating box and one resting on the floor,
+    every surface emitting E and reflecting rho: still B = E / (1 - rho)
+    everywhere (every ray from every point hits something). It tests the
+    visibility rule at convex edges, where the empty furnace cannot: without
+    the convex-edge exception, at rho 0.8 the mean falls to 0.955 and only
+    76% of the voxels lie within 5% (measured). With it: mean 0.9975 / 0.986
+    (rho 0.5 / 0.8), 99.1% / 97.3% of the voxels within 5%. Left out: the
+    few voxels no photon reaches (the resting box's bottom and the floor
+    under it, in contact; 1.5% of the voxels), a known weak point."""
+    scene = make_scene(furnace_obstacles(albedo=rho, emission=1.0), f"sfo_{rho}")
+    sol = solve(scene, solver_config("default", resolution=24, photons=2_000_000, radius=6, tolerance=1e-5))
+    lit = sol.photon_power[:, 0] > 0
+    assert lit.mean() > 0.98
+    b = sol.radiosity[lit, 0] * (1 - rho)
+    w = sol.voxels.area[lit] / sol.voxels.area[lit].sum()
+    assert abs(float(np.sum(b * w)) - 1) < (0.01 if rho == 0.5 else 0.02)
+    assert np.mean(np.abs(b - 1) < 0.05) > (0.98 if rho == 0.5 else 0.95)
 
 
 def test_k_bounce_partial_sums(make_scene):
@@ -362,3 +384,32 @@ def test_cornell_voxel_view_agrees_with_path_tracer(cornell):
     for name, (y0, y1, x0, x1) in regions.items():
         ratio = lv[y0:y1, x0:x1].mean() / lp[y0:y1, x0:x1].mean()
         assert abs(ratio - 1) < 0.10, (name, ratio)
+
+
+@pytest.mark.parametrize("hemisphere", [True, False])
+def test_sky_and_sun_photons(tmp_path, hemisphere):
+    """Photons from a uniform sky of radiance L light an open floor with
+    H_1 = pi L (the floor sees only the upper half, whatever the sky's
+    domain); a sun from azimuth 90 and elevation 30 with irradiance E gives
+    H_1 = E sin(30 degrees). The two add."""
+    from baker.scene import Sky, load_scene, sun
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)),
+           b.material("floor", (0.5,) * 3))
+    b.save(tmp_path / "floor.glb")
+    n = 2_000_000
+    config = solver_config("default", resolution=16, photons=n, max_bounces=1)
+    sky = load_scene(tmp_path / "floor.glb", sky=Sky(np.full(3, 2.0), hemisphere))
+    sol = solve(sky, config)
+    v = sol.voxels
+    full = v.area > 0.99 * v.cell_size ** 2
+    h = sol.irradiance[full, 0]
+    # the sky's photons cross a disc of radius R (the scene's bounding radius) across their direction;
+    # a floor voxel of area a receives a share a cos / (pi R^2) of them: photon noise per voxel
+    landed = n * v.area[full] * (0.5 if hemisphere else 0.25) / (np.pi * (np.sqrt(2) * 2 * 2 / 2) ** 2)
+    assert abs(h.mean() / (np.pi * 2.0) - 1) < 0.01
+    assert np.all(np.abs(h / (np.pi * 2.0) - 1) < 4.5 / np.sqrt(landed) + 0.01)
+    lit = load_scene(tmp_path / "floor.glb", lights=[sun(90, 30, 3.0)], sky=Sky(np.full(3, 2.0), hemisphere))
+    both = solve(lit, config).irradiance[full, 0]
+    assert abs(both.mean() / (np.pi * 2.0 + 3.0 * 0.5) - 1) < 0.01

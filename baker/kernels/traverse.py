@@ -11,6 +11,7 @@ import numpy as np
 from numba import njit, prange
 
 from .bvh import STACK_SIZE
+from .geometry import unit_cross
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -170,11 +171,8 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
 def hit_normal(bvh, j):
     """Unit geometric normal (winding order) of BVH-order triangle j."""
     tr = bvh.tris
-    ax, ay, az = tr[j, 3] - tr[j, 0], tr[j, 4] - tr[j, 1], tr[j, 5] - tr[j, 2]
-    bx, by, bz = tr[j, 6] - tr[j, 0], tr[j, 7] - tr[j, 1], tr[j, 8] - tr[j, 2]
-    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    ln = np.sqrt(nx * nx + ny * ny + nz * nz)
-    return nx / ln, ny / ln, nz / ln
+    return unit_cross(tr[j, 3] - tr[j, 0], tr[j, 4] - tr[j, 1], tr[j, 5] - tr[j, 2],
+                      tr[j, 6] - tr[j, 0], tr[j, 7] - tr[j, 1], tr[j, 8] - tr[j, 2])
 
 
 _CHUNK = 256

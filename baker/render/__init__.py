@@ -2,7 +2,6 @@
 the direct view of the voxel solution, and image files."""
 from __future__ import annotations
 
-import numpy as np
 
 from .camera import camera_array
 from .images import read_exr, write_image

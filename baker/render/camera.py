@@ -36,11 +36,15 @@ def primary_ray(cam, x, y, sx, sy, width, height):
     return cam[0, 0], cam[0, 1], cam[0, 2], dx / ln, dy / ln, dz / ln
 
 
-def render_bands(kernel, width, height, args, progress=None, band_rows=None):
+BAND_SAMPLES = 1 << 18  # camera samples per band: a fraction of a second, so Ctrl-C and the bar respond
+
+
+def render_bands(kernel, width, height, args, progress=None, samples_per_pixel=1):
     """Calls kernel(*args, row0, row1, out) over bands of rows into one
-    (height, width, 3) float32 image; `progress(n_rows)` after each band."""
+    (height, width, 3) float32 image, about BAND_SAMPLES camera samples per
+    band; `progress(n_rows)` after each band."""
     image = np.zeros((height, width, 3), np.float32)
-    band = band_rows or max(1, min(height, 8192 // max(width, 1) * 2))
+    band = max(1, min(height, BAND_SAMPLES // max(width * samples_per_pixel, 1)))
     for r0 in range(0, height, band):
         r1 = min(height, r0 + band)
         kernel(*args, r0, r1, image)

@@ -147,7 +147,7 @@ def render_pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0
     eps = 1e-7 * surfaces.scale
     return render_bands(_render_rows, width, height,
                         (scene_bvh.arrays, surfaces.arrays, camera_arr, eps, np.uint64(seed), int(spp),
-                         int(width), int(height)), progress)
+                         int(width), int(height)), progress, samples_per_pixel=int(spp))
 
 
 @njit(cache=True, parallel=True)

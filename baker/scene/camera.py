@@ -20,7 +20,8 @@ def _escape_fraction(bvh, centre, lo, hi, axis, sign):
     a1, a2 = (axis + 1) % 3, (axis + 2) % 3
     u, v = np.meshgrid(g, g, indexing="ij")
     pts = np.empty((u.size, 3))
-    pts[:, axis] = hi[axis] if sign > 0 else lo[axis]
+    margin = 0.01 * (hi[axis] - lo[axis]) + 1e-9 * max(abs(lo[axis]), abs(hi[axis]), 1.0)  # past a wall on the face
+    pts[:, axis] = hi[axis] + margin if sign > 0 else lo[axis] - margin
     pts[:, a1] = lo[a1] + u.ravel() * (hi[a1] - lo[a1])
     pts[:, a2] = lo[a2] + v.ravel() * (hi[a2] - lo[a2])
     d = pts - centre

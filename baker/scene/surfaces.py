@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..kernels.geometry import unit_cross
 from ..kernels.sampling import sample_cdf, triangle_point
 from .model import UP
 
@@ -133,17 +134,13 @@ def albedo_at(surf, tri, b1, b2):
     return r, g, b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def triangle_normal(corners, tri):
     """Unit normal of triangle `tri` of corners (nt, 3, 3), front by its
     winding (counter-clockwise seen from the front)."""
-    ax, ay, az = corners[tri, 1, 0] - corners[tri, 0, 0], corners[tri, 1, 1] - corners[tri, 0, 1], \
-        corners[tri, 1, 2] - corners[tri, 0, 2]
-    bx, by, bz = corners[tri, 2, 0] - corners[tri, 0, 0], corners[tri, 2, 1] - corners[tri, 0, 1], \
-        corners[tri, 2, 2] - corners[tri, 0, 2]
-    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-    return nx / ln, ny / ln, nz / ln
+    c = corners
+    return unit_cross(c[tri, 1, 0] - c[tri, 0, 0], c[tri, 1, 1] - c[tri, 0, 1], c[tri, 1, 2] - c[tri, 0, 2],
+                      c[tri, 2, 0] - c[tri, 0, 0], c[tri, 2, 1] - c[tri, 0, 1], c[tri, 2, 2] - c[tri, 0, 2])
 
 
 @njit(cache=True)
@@ -163,7 +160,7 @@ def sample_emitter(surf, u_tri, u1, u2):
     return tri, px, py, pz, surf.emitter_prob[tri]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def spot_falloff(cos_axis, cos_inner, cos_outer):
     """glTF KHR_lights_punctual's spot attenuation at cos_axis (the cosine
     between the light's axis and the direction to the point): a smooth

@@ -1,5 +1,5 @@
-"""The packed records of the linear propagation, field by field, and the
-small helpers that store them (docs/design.md section 4, "memory layout").
+"""The packed records of the linear propagation, field by field (docs/design.md
+section 4; why this layout: solve/sweep.py).
 
 The sweep reads these as flat arrays with unsigned offsets (row * width +
 field): numba then needs neither the rows' strides nor wrap-around code
@@ -12,7 +12,6 @@ copy in the sweep axis's order):
 import numpy as np
 from numba import njit
 
-from ..kernels.prefetch import prefetch
 
 # Field offsets are numpy uint64 so that `row + FIELD` stays unsigned in numba (a plain int would make it int64,
 # and every flat index would get a negative-index check); row widths are plain ints.
@@ -51,7 +50,7 @@ T_LAST = _u(2)    # the voxel last added to its list (the convex-edge test's z)
 T_KEY = _u(3)     # the line id (hashed tables)
 
 EMPTY = -1
-RING = 32                    # hits a sweep keeps before writing them (see record_hit)
+RING = 32                    # hits a sweep keeps before writing them (sweep.py)
 
 
 @njit(cache=True, inline="always")
@@ -70,47 +69,3 @@ def cut_side(pos, v):
 def is_sheet(pos, v):
     """Is voxel v a face of a two-sided sheet?"""
     return pos[v, P_SHEET] != 0.0
-
-
-@njit(cache=True, inline="always")
-def take_record(free, nfree, ntop):
-    """A free waiting record: the last freed one, else a new one at the top
-    of the pool. Returns (record, nfree, ntop)."""
-    if nfree > 0:
-        nfree -= 1
-        return np.int64(free[np.uint64(nfree)]), nfree, ntop
-    return np.int64(ntop), nfree, ntop + 1
-
-
-@njit(cache=True, inline="always")
-def unlink(j, nj, prev, head, rec, free, nfree):
-    """Removes waiting record j (followed by nj) from its list, after prev
-    (the head if none), and frees it: returns (the list's head, nfree)."""
-    if prev == EMPTY:
-        head = nj
-    else:
-        rec[np.uint64(REC * prev) + R_NEXT] = nj
-    free[np.uint64(nfree)] = j
-    return head, nfree + 1
-
-
-@njit(cache=True, inline="always")
-def record_hit(hit, hp, value, ring_p, ring_v, nh):
-    """Stores `value` (the voxel a ray met) at flat offset hp of `hit`,
-    deferred: prefetched now, written RING hits later. A store that misses
-    the cache holds up every later store, a prefetch holds up nothing
-    (1.1x at a million voxels). Returns the new hit count."""
-    prefetch(hit, hp)
-    slot = nh & (RING - 1)
-    if nh >= RING:
-        hit[ring_p[slot]] = ring_v[slot]
-    ring_p[slot] = hp
-    ring_v[slot] = value
-    return nh + 1
-
-
-@njit(cache=True, inline="always")
-def flush_hits(hit, ring_p, ring_v, nh):
-    """Writes the hits still in the ring."""
-    for i in range(max(0, nh - RING), nh):
-        hit[ring_p[i & (RING - 1)]] = ring_v[i & (RING - 1)]

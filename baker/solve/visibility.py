@@ -6,10 +6,10 @@ record in the line's waiting list). For each next voxel y, each waiting x
 is tested on its own, with d = (c_x - c_y) . n_y, how far x is in front of
 y's plane (lengths in cells):
 
-- `front_outcome`: y faces the rays (n_y . s < 0). x with d >= -tau
-  gathers B(y) and leaves the list; x behind y's plane moves away from it
-  and keeps waiting. Extra tests, each for a case the tau rule alone gets
-  wrong:
+- `in_front`, `front_outcome`, `front_check`: y faces the rays
+  (n_y . s < 0). x with d >= -tau gathers B(y) and leaves the list; x
+  behind y's plane moves away from it and keeps waiting. Extra tests, each
+  for a case the tau rule alone gets wrong:
   * a face of a two-sided sheet is seen from in front only (d >= 0), and
     never by its sheet's other face (`back_to_back`): the two faces lie at
     one centroid;
@@ -32,15 +32,17 @@ y's plane (lengths in cells):
 The sweep (sweep.py) walks the lines and their waiting lists and asks
 these functions what each pair does; what makes it fast (prefetching, the
 ring of hits, stamped tables, the record pool, the lists' bounds) lives
-there and in records.py. (The per-pair functions take no loops: a numba
-function with arrays and a loop, inlined into the sweep, keeps reference
-counts alive across its loop, which made the sweep 2x slower.)
+there and in records.py. (The per-pair functions inlined into the sweep
+take numbers, not arrays: numba's inlining of a function with array
+arguments left reference counting in the sweep's loop, 8-20% more
+instructions per transfer, measured with callgrind; the rarer tests are
+functions of their own, called out of line.)
 """
 import numpy as np
 from numba import njit
 
 from ..voxels.tolerances import SAME_PLANE_COS, SHEET_BACK_COS
-from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y,
+from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_X, P_Y,
                       P_Z, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, cut_row, cut_side, is_sheet)
 
 CUT_REACH = 3.0        # cells around a cut voxel's cell where its cutting surface is taken to stand
@@ -237,28 +239,33 @@ def convex_edge(z, y, pos, kappa_h):
     return dz < 0.0 and ez < 0.0 and dz >= -kappa_h
 
 
-WAIT, GATHER, HIDDEN, CHECK = 0, 1, 2, 3   # what a waiting voxel does when a voxel facing it comes
+WAIT, GATHER, HIDDEN, CHECK = 0, 1, 2, 3   # what a waiting voxel in front of a voxel facing it does
 
 
 @njit(cache=True, inline="always")
-def front_min(pos, yr, tau_h):
-    """How far behind the plane of y (facing the rays; its row at flat
-    offset yr) a waiting voxel may lie and still see it: tau, or 0 for a
-    face of a sheet (within tau behind it, its other face is the one facing
-    the waiting voxel)."""
-    return 0.0 if pos[yr + P_SHEET] != 0.0 else -tau_h
+def front_min(sheet, tau_h):
+    """How far behind the plane of y (facing the rays; sheet: its P_SHEET
+    field) a waiting voxel may lie and still see it: tau, or 0 for a face of
+    a sheet (within tau behind it, its other face is the one facing the
+    waiting voxel)."""
+    return 0.0 if sheet != 0.0 else -tau_h
+
+
+@njit(cache=True, inline="always")
+def in_front(d, dmin):
+    """y faces the rays (n_y . s < 0); x waits, d = (c_x - c_y) . n_y. Does x
+    lie in front of y's plane (or behind it by less than -dmin)? If not,
+    x's ray moves away from y's plane: x keeps waiting."""
+    return d >= dmin
 
 
 @njit(cache=True, inline="always")
 def front_outcome(d, dmin, tau_h, m, xe, ycut, passed):
-    """y faces the rays (n_y . s < 0); x waits, d = (c_x - c_y) . n_y, xe its
-    record's voxel (negative: its pieces were cut), m the voxels of y's cell,
-    passed the surface along the line x passed (EMPTY: none). Returns WAIT
-    (x lies behind y's plane: it moves away from it), GATHER (x sees y), or
-    CHECK: y may be the back of x's own sheet, or hidden from x by another
-    surface; `front_check` decides."""
-    if d < dmin:
-        return WAIT
+    """y faces the rays and x lies in front of its plane (in_front); xe is
+    x's record's voxel (negative: its pieces were cut), m the voxels of y's
+    cell, passed the surface along the line x passed (EMPTY: none). Returns
+    GATHER (x sees y), or CHECK: y may be the back of x's own sheet, or
+    hidden from x by another surface; `front_check` decides."""
     if (dmin == 0.0 and d <= tau_h) or m > 1 or xe < 0 or ycut or passed != EMPTY:
         return CHECK
     return GATHER
