@@ -11,7 +11,15 @@ The library face (the command line `voxbake` is a thin layer over it):
 """
 __version__ = "0.1.0"
 
-from .startup import hold_interrupts
+import os as _os
+
+# numba's OpenMP threads spin while they wait for work by default; beside another busy process a spinning
+# thread holds the core that the late thread needs (the propagation meets a barrier per batch of
+# families): 2.6-3.4x slower with one or two busy processes on two cores, against 1.8x when the threads
+# sleep, and the same speed on a quiet machine (bench/threads.py). The user's own setting wins.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+from .startup import hold_interrupts  # noqa: E402
 
 hold_interrupts()  # a command's Ctrl-C during these imports is answered once the command runs (cli.run)
 

@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
 
 import numba
 import numpy as np
 
 from common import ROOT, emit
+from baker.errors import VoxgiWarning
 from baker.scene import bvh as bvh_mod
 from baker.render import camera_array
 from baker.scene import load_scene
@@ -35,7 +37,9 @@ def bunny_sized(path):
     b.mesh("room", *box((-1.5, 0, -1.5), (1.5, 2, 1.5), inward=True), m)
     b.camera("front", (0, 0.8, -1.4), (0, -0.1, 1), yfov_deg=60)
     b.save(path)
-    return load_scene(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", VoxgiWarning)  # no lamp: rays only
+        return load_scene(path)
 
 
 def surface_points(scene, n, rng):

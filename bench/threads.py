@@ -24,8 +24,9 @@ import time
 from common import ROOT, emit
 
 SETUPS = [
-    ("voxgi (omp, OMP_WAIT_POLICY=PASSIVE)", {}),
-    ("omp, spin-wait (numba's default)", {"OMP_WAIT_POLICY": "ACTIVE"}),
+    ("as voxgi sets it (nothing set by the user)", {}),
+    ("omp, OMP_WAIT_POLICY=ACTIVE", {"OMP_WAIT_POLICY": "ACTIVE"}),
+    ("omp, OMP_WAIT_POLICY=PASSIVE", {"OMP_WAIT_POLICY": "PASSIVE"}),
     ("workqueue", {"NUMBA_THREADING_LAYER": "workqueue"}),
 ]
 

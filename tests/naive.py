@@ -135,7 +135,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                     d_xy = dot(centroid[x] - centroid[y], normal[y])
                                     if d_xy < 0 and cut[x][4] != 0:  # x's cell is cut by y's own plane
                                         cn = dot(cut[x][:3], normal[y])
-                                        same = abs(cn) > 0.999 and abs(cut[x][3] - cn * dot(centroid[y], normal[y])) < tau * h
+                                        same = abs(cn) > 0.999 and \
+                                            abs(cut[x][3] - cn * dot(centroid[y], normal[y])) < tau * h
                                         between = between or same
                                 if x in passed:  # across the plane of a surface the line ran along
                                     w = passed[x]

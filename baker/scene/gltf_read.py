@@ -254,6 +254,7 @@ def read_gltf(path):
     if ignored:
         said = "; ".join(f"{what} in {', '.join(repr(n) for n in names)}" for what, names in ignored.items())
         notes.append(f"{path}: the baker treats every surface as diffuse and ignores {said}")
-    return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris), material_ids=np.concatenate(mids),
+    return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris),
+                material_ids=np.concatenate(mids),
                 materials=materials, normals=np.concatenate(norms) if has_normals and norms else None,
                 uvs=np.concatenate(uvs) if has_uvs and uvs else None, cameras=cameras, lights=lights)

@@ -6,11 +6,10 @@ material; cameras and KHR_lights_punctual lights are nodes.
 """
 from __future__ import annotations
 
-import os
-import tempfile
-
 import numpy as np
 import pygltflib as g
+
+from ..fileio import atomic_write
 
 
 def _look_rotation(forward, up):
@@ -143,15 +142,5 @@ class GltfBuilder:
             self.blob.append(0)
         self.doc.buffers = [g.Buffer(byteLength=len(self.blob))]
         self.doc.set_binary_blob(bytes(self.blob))
-        folder = os.path.dirname(os.path.abspath(path))
-        fd, tmp = tempfile.mkstemp(suffix=".glb.tmp", dir=folder)
-        os.close(fd)
-        try:
-            self.doc.save_binary(tmp)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.remove(tmp)
-            raise
+        atomic_write(path, self.doc.save_binary)
         return path

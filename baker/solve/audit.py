@@ -85,7 +85,8 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
         corners = surfaces.arrays.corners
         back = np.zeros(len(pick), bool)
         hit_tri = tri >= 0
-        nt = np.cross(corners[tri[hit_tri], 1] - corners[tri[hit_tri], 0], corners[tri[hit_tri], 2] - corners[tri[hit_tri], 0])
+        c = corners[tri[hit_tri]]
+        nt = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         back[hit_tri] = np.einsum("ij,ij->i", nt, u[hit_tri]) > 0
         front_hit = hit_tri & ~(back & ~double[np.maximum(tri, 0)])
         d = src[pick]

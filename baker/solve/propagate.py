@@ -132,7 +132,8 @@ class LineSweeper:
         out = np.empty((dirs.n_families, 2), np.int64)
         for f in range(dirs.n_families):
             for j in range(2):
-                out[f, j] = int(rand01(seed, bounce * LINE_OFFSET_BOUNCE_STRIDE + f, STREAM_LINE_OFFSETS + j) * a[f]) % a[f]
+                u = rand01(seed, bounce * LINE_OFFSET_BOUNCE_STRIDE + f, STREAM_LINE_OFFSETS + j)
+                out[f, j] = int(u * a[f]) % a[f]
         return out
 
     def gather(self, radiosity, dirs: DirectionSet, offsets):

@@ -69,3 +69,24 @@ def cut_side(pos, v):
 def is_sheet(pos, v):
     """Is voxel v a face of a two-sided sheet?"""
     return pos[v, P_SHEET] != 0.0
+
+
+# Helpers of the sweep (sweep.py says which of its steps are functions and why).
+
+@njit(cache=True)
+def unlink(j, nj, prev, head, rec, free, nfree):
+    """Removes waiting record j (followed by nj) from its list, after prev
+    (the head if none), and frees it: returns (the list's head, nfree)."""
+    if prev == EMPTY:
+        head = nj
+    else:
+        rec[np.uint64(REC * prev) + R_NEXT] = nj
+    free[np.uint64(nfree)] = j
+    return head, nfree + 1
+
+
+@njit(cache=True)
+def flush_hits(hit, ring_p, ring_v, nh):
+    """Writes the hits still in the ring."""
+    for i in range(max(0, nh - RING), nh):
+        hit[ring_p[i & (RING - 1)]] = ring_v[i & (RING - 1)]

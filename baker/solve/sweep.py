@@ -39,17 +39,19 @@ the records' layouts are in records.py):
 - the rare paths (cells with several voxels, cut cells, convex edges) are
   functions of their own: inlined, they slow the common path by a third
   (register pressure);
-- the list mechanics (the ring of hits, the record pool) are written out in
-  the loop, and the rule's per-pair functions it inlines take numbers only:
-  numba's inlining of helpers with array arguments left reference counting
-  in the loop (8% more instructions per transfer, counted with callgrind).
+- the loop's helpers are chosen by instruction counts (callgrind, one
+  thread): a helper with array arguments marked inline="always" left
+  numba's reference counting in the loop (8% more instructions per
+  transfer); `unlink` as a plain function costs nothing; the hit ring and
+  the record pool written as functions cost 7% and are written out here.
 """
 import numpy as np
 from numba import njit, prange
 
 from ..kernels.prefetch import prefetch
-from .records import (EMPTY, LINE, P_CUT, P_SHEET, P_NX, P_NY, P_NZ, P_X, P_Y, P_Z, POS, R_BOUND, R_NEXT, R_NX, R_NY, R_NZ,
-                      R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, T_HEAD, T_KEY, T_LAST, T_STAMP)
+from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_NEXT, R_NX, R_NY,
+                      R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, T_HEAD, T_KEY, T_LAST, T_STAMP,
+                      flush_hits, unlink)
 from .visibility import (CHECK, GATHER, WAIT, convex_edge, front_check, front_min, front_outcome, hits_back,
                          in_front, order_cell, passes_parallel)
 
@@ -196,13 +198,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                         ring_p[slot] = hp
                         ring_v[slot] = order[np.uint64(y)]
                         nh += 1
-                    # x leaves the list: unlink its record and free it
-                    if prev == EMPTY:
-                        head = nj
-                    else:
-                        rec[np.uint64(REC * prev) + R_NEXT] = nj
-                    free[np.uint64(nfree)] = j
-                    nfree += 1
+                    head, nfree = unlink(j, nj, prev, head, rec, free, nfree)  # x leaves the list
                     j = nj
             else:
                 # y turns its back: waiting voxels that hit it leave, then y joins the list
@@ -239,18 +235,12 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
                     if hits_back(d, ex, z_edge, tau, kappa):
-                        # x leaves the list: unlink its record and free it
-                        if prev == EMPTY:
-                            head = nj
-                        else:
-                            rec[np.uint64(REC * prev) + R_NEXT] = nj
-                        free[np.uint64(nfree)] = j
-                        nfree += 1
+                        head, nfree = unlink(j, nj, prev, head, rec, free, nfree)  # x leaves the list
                     else:
                         prev = j
                         low = min(low, d)
                     j = nj
-                # y joins the list: a record from the free list, else a new one from the pool's top
+                # y joins the list, at its head: a record from the free list, else a new one from the pool
                 if nfree > 0:
                     nfree -= 1
                     j = np.int64(free[np.uint64(nfree)])
@@ -271,8 +261,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 last = y
         tab[tr + T_HEAD] = head
         tab[tr + T_LAST] = last
-    for i in range(max(0, nh - RING), nh):  # the hits still in the ring
-        hit[ring_p[i & (RING - 1)]] = ring_v[i & (RING - 1)]
+    flush_hits(hit, ring_p, ring_v, nh)
 
 
 @njit(cache=True, parallel=True)

@@ -80,7 +80,8 @@ def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
                     q = order[j]
                     if facing[q] == facing[p]:
                         continue
-                    if normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2] < SHEET_BACK_COS:
+                    cos = normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2]
+                    if cos < SHEET_BACK_COS:
                         continue  # the other face of a two-sided surface (curved: its pieces' planes differ)
                     d = 0.0
                     for c in range(3):

@@ -98,9 +98,9 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
                         plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
                             (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
                             (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                        if cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign,
-                                                                                origin, h) \
-                                and _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
+                        if cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and \
+                                _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign, origin, h) and \
+                                _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
                             best, best_a = j, varea[j]
         parent[i] = best
     return parent

@@ -315,7 +315,8 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
     cell = pieces.cell[order][starts]
     nl = np.linalg.norm(nrm, axis=1, keepdims=True)
     h = grid.h
-    return dict(cell=cell.astype(np.int32), area=area * h * h, normal=np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0),
+    return dict(cell=cell.astype(np.int32), area=area * h * h,
+                normal=np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0),
                 centroid=grid.origin + cen / area[:, None] * h, albedo=alb / area[:, None],
                 emission=em / area[:, None], material=material,
                 cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=pieces.sign[order][starts],
