@@ -113,7 +113,10 @@ def _find_libs(rest: str, folder: str):
     found, missing = [], []
     for name in rest.split():
         p = os.path.join(folder, name)
-        (found if os.path.isfile(p) else missing).append(name if not os.path.isfile(p) else p)
+        if os.path.isfile(p):
+            found.append(p)
+        else:
+            missing.append(name)
     return found, missing
 
 
