@@ -8,6 +8,7 @@ prints `interrupted: nothing was written` and exits 130.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 
@@ -340,6 +341,9 @@ def run(func, *args):
         except MemoryError:
             print("error: out of memory (lower --resolution or --memory-budget)", file=sys.stderr)
             return 2
+        except BrokenPipeError:  # the output's reader left (`voxbake scenes | head -1`): stop quietly
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 141
         except BaseException as e:
             if interrupted(e):
                 print("interrupted: nothing was written", file=sys.stderr)

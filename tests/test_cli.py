@@ -92,3 +92,11 @@ def test_ctrl_c_at_any_moment_writes_nothing(tmp_path, args, moments):
         assert stderr.strip().splitlines()[-1] == "interrupted: nothing was written", (t, stderr[-2000:])
         assert "Traceback" not in stderr and "SystemError" not in stderr, (t, stderr[-2000:])
         assert not list(tmp_path.iterdir()), t
+
+
+def test_output_cut_short_by_its_reader():
+    """`voxbake info walkthrough | head -1`: the reader leaves early; no traceback."""
+    r = subprocess.run(f"'{sys.executable}' -m baker info walkthrough | head -1", shell=True, capture_output=True,
+                       text=True)
+    assert r.stdout.startswith("scene ") and len(r.stdout.splitlines()) == 1
+    assert "Traceback" not in r.stderr and "BrokenPipe" not in r.stderr, r.stderr
