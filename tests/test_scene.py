@@ -333,3 +333,21 @@ def test_command_line_camera(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "baker", "render", "cornell_box", "--look-from", "1,2", "-o",
                           str(tmp_path / "x.png")], capture_output=True, text=True)
     assert bad.returncode == 2 and "X,Y,Z" in bad.stderr
+
+
+def test_duplicate_faces_count_once(tmp_path):
+    """The classic Cornell box OBJ gives a box's front face twice (again as
+    its "bottom", with the same corners): the repeat is dropped, with a
+    warning, so that its area counts once. The same corners in the opposite
+    winding are a sheet's two faces and stay."""
+    (tmp_path / "d.obj").write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        "f 1 2 3 4\n"      # the front face
+        "f -4 -3 -2 -1\n"  # the same quad again, as the file gives it
+        "f 4 3 2 1\n")     # the other winding: the back face
+    with pytest.warns(UserWarning, match="dropped 2 duplicate triangles"):
+        s = load_scene(tmp_path / "d.obj", one_sided=True)
+    c = s.vertices[s.triangles].astype(float)
+    normal_z = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])[:, 2]
+    assert (normal_z > 0).sum() == 2 and (normal_z < 0).sum() == 2
+    assert s.triangle_areas().sum() == pytest.approx(2.0)

@@ -101,6 +101,12 @@ def _validate(path, vertices, triangles, material_ids, materials, normals=None, 
         triangles, material_ids = triangles[~degenerate], material_ids[~degenerate]
         if len(triangles) == 0:
             raise SceneError("every triangle is degenerate", path)
+    duplicate = duplicate_triangles(vertices.astype(np.float32)[triangles])
+    if duplicate.any():
+        n = int(duplicate.sum())
+        notes.append(f"{path}: dropped {n} duplicate triangle{'s' * (n != 1)} (the same corners, in the same "
+                     f"order, as another: one surface counts once)")
+        triangles, material_ids = triangles[~duplicate], material_ids[~duplicate]
     scene = Scene(vertices=vertices.astype(np.float32), triangles=triangles.astype(np.int32),
                   material_ids=material_ids.astype(np.int32), materials=tuple(materials),
                   normals=None if normals is None else np.asarray(normals, np.float32),
@@ -112,6 +118,28 @@ def _validate(path, vertices, triangles, material_ids, materials, normals=None, 
     for note in notes:
         warnings.warn(note, VoxgiWarning, stacklevel=3)
     return replace(scene, warnings=tuple(notes))
+
+
+def duplicate_triangles(corners) -> np.ndarray:
+    """(nt,) bool: triangles whose corners (nt, 3, 3) repeat an earlier
+    triangle's with the same winding (any first corner). A file that gives
+    one face twice (the classic Cornell box OBJ repeats a box's front face
+    as its "bottom") would otherwise count its area twice. The same corners
+    in the opposite winding are the two faces of a sheet, and stay."""
+    c = np.ascontiguousarray(corners, np.float32) + np.float32(0.0)  # -0.0 as 0.0
+
+    def less(a, b):  # corner a before corner b, lexicographically (x, y, z)
+        pa, pb = c[:, a], c[:, b]
+        return (pa[:, 0] < pb[:, 0]) | ((pa[:, 0] == pb[:, 0]) & ((pa[:, 1] < pb[:, 1]) |
+                                                                   ((pa[:, 1] == pb[:, 1]) & (pa[:, 2] < pb[:, 2]))))
+    l01, l02, l12 = less(0, 1), less(0, 2), less(1, 2)
+    first = np.where(l01 & l02, 0, np.where(~l01 & l12, 1, 2))
+    rot = (first[:, None] + np.arange(3)[None, :]) % 3  # the smallest corner first, the winding kept
+    canon = np.ascontiguousarray(np.take_along_axis(c, rot[:, :, None], axis=1).reshape(len(c), 9))
+    _, index = np.unique(canon.view(np.dtype((np.void, 36))).ravel(), return_index=True)
+    repeat = np.ones(len(c), bool)
+    repeat[index] = False
+    return repeat
 
 
 def _read_ply(path, double_sided):
