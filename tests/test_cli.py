@@ -76,7 +76,7 @@ def test_warnings_of_other_libraries_are_kept(capsys):
     # voxel solve: import and load, voxelization, photons (20M: several seconds), propagation
     (["--method", "voxels", "--resolution", "96", "--photons", "20000000", "--radius", "12"], [0.5, 2.5, 4.5, 9.0]),
     # the path tracer between and inside bands of rows
-    (["--method", "pathtrace", "--spp", "4096", "--width", "64", "--height", "64"], [3.0, 6.0]),
+    (["--method", "pathtrace", "--spp", "16384", "--width", "64", "--height", "64"], [3.0, 6.0]),
 ])
 def test_ctrl_c_at_any_moment_writes_nothing(tmp_path, args, moments):
     """SIGINT at several moments of a run (inside numba kernels too): one
