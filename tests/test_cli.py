@@ -74,7 +74,7 @@ def test_warnings_of_other_libraries_are_kept(capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("args,moments", [
     # voxel solve: import and load, voxelization, photons (20M: several seconds), propagation
-    (["--method", "voxels", "--resolution", "96", "--photons", "20000000", "--radius", "12"], [0.5, 2.5, 4.5, 9.0]),
+    (["--method", "voxels", "--resolution", "128", "--photons", "20000000", "--radius", "16"], [0.5, 2.5, 4.5, 9.0]),
     # the path tracer between and inside bands of rows
     (["--method", "pathtrace", "--spp", "16384", "--width", "64", "--height", "64"], [3.0, 6.0]),
 ])
