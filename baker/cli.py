@@ -139,6 +139,7 @@ def cmd_render(args):
     from .progress import bar
     from .render import camera_array, write_image
     from .scene import build_scene_bvh, pack
+    from .startup import checkpoint
     from .stats import Stats
     check_output_path(args.output, (".exr", ".png"))
     _check_common(args)
@@ -172,6 +173,7 @@ def cmd_render(args):
             print(solution.summary(), file=sys.stderr)
     if not np.isfinite(image).all() or image.min() < 0:
         raise VoxgiError("internal error: non-finite or negative pixels (please report)", args.scene)
+    checkpoint()  # a Ctrl-C from the last stretch: stop before writing
     with stats.stage("write"):
         write_image(args.output, image, args.exposure)
     if args.stats:
@@ -320,10 +322,7 @@ def run(func, *args):
     with exit 2, Ctrl-C with exit 130, our warnings as one line each (other
     libraries' warnings shown as usual), the process's warning hooks put
     back after."""
-    from .startup import release_interrupts
-    if release_interrupts():
-        print("interrupted: nothing was written", file=sys.stderr)
-        return 130
+    from .startup import checkpoint, release_interrupts
     original = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):
@@ -334,6 +333,7 @@ def run(func, *args):
     with warnings.catch_warnings():
         warnings.showwarning = show
         try:
+            checkpoint()  # Ctrl-C while the command was starting
             return func(*args)
         except VoxgiError as e:
             print(f"error: {e.one_line()}", file=sys.stderr)
@@ -349,6 +349,8 @@ def run(func, *args):
                 print("interrupted: nothing was written", file=sys.stderr)
                 return 130
             raise
+        finally:
+            release_interrupts()
 
 
 def main(argv=None) -> int:

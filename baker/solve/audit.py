@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels.rng import STREAM_AUDIT_FAMILIES, STREAM_AUDIT_VOXELS, rand01
+from ..startup import checkpoint
 from .directions import DirectionSet, direction_set
 from .propagate import TAU, LineSweeper
 
@@ -70,6 +71,7 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
     worst, pairs = [], 0
     double = scene.double_sided[scene.material_ids]
     for f in fam:
+        checkpoint()
         src, sgn, weight = discrete_sources(sweeper, dirs, f, seed)
         cand = np.nonzero(weight > 0)[0]
         if len(cand) == 0:

@@ -49,6 +49,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.prefetch import prefetch
+from ..startup import checkpoint
 from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_NEXT, R_NX, R_NY,
                       R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, T_HEAD, T_KEY, T_LAST, T_STAMP,
                       flush_hits, unlink)
@@ -416,7 +417,7 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
     lid = np.empty((2, ng), np.int32)  # the cells' line ids, per lane (< 2^31: LineSweeper.line_table)
     hit = np.full((n, HIT_BATCH), EMPTY, np.int32)  # the voxel each ray met, per family of a batch
     # a call per slice of about CALL_TRANSFERS transfers (whole batches, in order: the same sums), so that
-    # Ctrl-C and a progress bar get a word in between
+    # a command's Ctrl-C can stop between them (startup.checkpoint)
     per_call = HIT_BATCH * max(1, CALL_TRANSFERS // (2 * HIT_BATCH * n))
     stamp = 0
     for k in range(3):
@@ -425,6 +426,7 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
             continue
         _permute(orders[k], starts[k], cell, pos_all, pos, gcell)
         for f0 in range(0, len(fams), per_call):
+            checkpoint()
             part = fams[f0:f0 + per_call]
             _families(part, starts[k], gcell, orders[k], pos, pos_all, cutp, radiosity, hit, gathered, quad,
                       cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees,

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BudgetError
+from ..startup import checkpoint
 from .albedo import textured_albedo
 from .cells import cell_runs, find_straddlers, merge_sheets, separating_planes, side_signatures, split_pieces
 from .clip import clip_pieces, count_candidates
@@ -357,10 +358,13 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     corners = scene.triangle_corners()
     sides_tri, sides_sign = _sides(scene)
     counts = check_budget(scene, grid, corners, sides_tri, sides_sign, memory_budget_mb)
+    checkpoint()
     pieces = clip_sides(corners, sides_tri, sides_sign, grid, counts)
+    checkpoint()
     pieces = cut_straddlers(pieces, sides_tri[pieces.side], corners, grid)
     key, facing, axis = pieces.keys_and_facings(grid.dims)
     by_cell, runs = mark_crossed_cells(pieces, key, sides_tri[pieces.side])
+    checkpoint()
     order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs)
     sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces)
     lookup = piece_lookup(pieces, key, order, vox_of, sides_tri, len(scene.triangles))
