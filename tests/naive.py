@@ -123,10 +123,15 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                 passed[x] = y
                         continue
                     if o < 0:
+                        def sheet_edge(w):  # w and the other face of y's sheet form a convex edge
+                            dw = dot(centroid[w] - centroid[y], normal[y])
+                            return bool(sheet[y]) and 0 < dw <= kappa * h and dot(centroid[y] - centroid[w], normal[w]) < 0
+                        edge_last = last is not None and sheet_edge(last)
                         keep = []
                         for x in waiting:
                             d = dot(centroid[x] - centroid[y], normal[y])
                             backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.99 and d <= tau * h
+                            backs = backs or edge_last or sheet_edge(x)
                             if d >= (0.0 if sheet[y] else -tau * h) and not backs:
                                 between = any(hidden_by(q, x, y) for q in members
                                               if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))

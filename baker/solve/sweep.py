@@ -54,7 +54,7 @@ from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P
                       R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, T_HEAD, T_KEY, T_LAST, T_STAMP,
                       flush_hits, unlink)
 from .visibility import (CHECK, GATHER, WAIT, convex_edge, front_check, front_min, front_outcome, hits_back,
-                         in_front, order_cell, passes_parallel)
+                         in_front, order_cell, passes_parallel, sheet_convex_edge)
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
 AHEAD_HEAD = 16   # ... its first waiting record
@@ -166,6 +166,10 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 cy0, cy1, cy2 = float(pos[yr + P_X]), float(pos[yr + P_Y]), float(pos[yr + P_Z])
                 ycut = pos[yr + P_CUT] != 0.0
                 dmin = front_min(pos[yr + P_SHEET], tau)
+                # y the inner face of a convex two-sided surface the line runs along (visibility.front_check)
+                z_sheet = dmin == 0.0 and last != EMPTY and sheet_convex_edge(
+                    float(pos2[last, P_X]), float(pos2[last, P_Y]), float(pos2[last, P_Z]), float(pos2[last, P_NX]),
+                    float(pos2[last, P_NY]), float(pos2[last, P_NZ]), y, pos2, kappa)
                 prev = EMPTY
                 j = head
                 while j != EMPTY:
@@ -179,10 +183,10 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                         continue
                     xe = np.int64(rec[jr + R_VOXEL])
                     x = xe if xe >= 0 else -xe - 1
-                    what = front_outcome(d, dmin, tau, m, xe, ycut, rec[jr + R_PASSED])
+                    what = front_outcome(d, dmin, tau, kappa, z_sheet, m, xe, ycut, rec[jr + R_PASSED])
                     if what == CHECK:
-                        what = front_check(d, dmin, x, xe, y, m, ycut, g, rec, recf, jr, pos_all, pos2, buf, gcell,
-                                           cutp, tau)
+                        what = front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf,
+                                           gcell, cutp, tau, kappa)
                     if what == WAIT:
                         prev = j
                         j = nj

@@ -259,24 +259,50 @@ def in_front(d, dmin):
     return d >= dmin
 
 
+@njit(cache=True)
+def sheet_convex_edge(w0, w1, w2, wn0, wn1, wn2, y, pos, kappa_h):
+    """Does w (centroid w0..w2, normal wn0..wn2) form a convex edge with the
+    other face of y's sheet (y's centroid, normal -n_y): w just in front of
+    y's plane, within kappa (just behind the other face's), and y behind
+    w's plane? Then a ray from w along a convex two-sided surface meets
+    the sheet's inner face only because the digital line is a cell thick:
+    it passes (the continuous ray leaves the surface), as it passes the
+    other face's back by `convex_edge`."""
+    y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
+    dw = (w0 - y0) * float(pos[y, P_NX]) + (w1 - y1) * float(pos[y, P_NY]) + (w2 - y2) * float(pos[y, P_NZ])
+    ew = (y0 - w0) * wn0 + (y1 - w1) * wn1 + (y2 - w2) * wn2
+    return dw > 0.0 and dw <= kappa_h and ew < 0.0
+
+
 @njit(cache=True, inline="always")
-def front_outcome(d, dmin, tau_h, m, xe, ycut, passed):
+def front_outcome(d, dmin, tau_h, kappa_h, z_sheet, m, xe, ycut, passed):
     """y faces the rays and x lies in front of its plane (in_front); xe is
     x's record's voxel (negative: its pieces were cut), m the voxels of y's
     cell, passed the surface along the line x passed (EMPTY: none). Returns
-    GATHER (x sees y), or CHECK: y may be the back of x's own sheet, or
-    hidden from x by another surface; `front_check` decides."""
-    if (dmin == 0.0 and d <= tau_h) or m > 1 or xe < 0 or ycut or passed != EMPTY:
+    GATHER (x sees y), or CHECK: y may be the back of x's own sheet, the
+    inner face of a convex sheet x's ray runs along (z_sheet: along the
+    voxel last added to the list), or hidden from x by another surface;
+    `front_check` decides."""
+    if (dmin == 0.0 and (d <= kappa_h or z_sheet)) or m > 1 or xe < 0 or ycut or passed != EMPTY:
         return CHECK
     return GATHER
 
 
 @njit(cache=True)
-def front_check(d, dmin, x, xe, y, m, ycut, g, rec, recf, jr, pos_all, pos2, buf, gcell, cutp, tau_h):
+def front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf, gcell, cutp, tau_h,
+                kappa_h):
     """The rarer cases of front_outcome: WAIT when y is the back of x's own
-    sheet, HIDDEN when another surface stands between them (x leaves the
-    list with nothing), else GATHER."""
-    if dmin == 0.0 and d <= tau_h and back_to_back(rec, recf, jr, pos_all, pos2, y):
+    sheet, or the other face of a sheet whose face forms a convex edge with
+    x or (z_sheet) with the voxel last added to the list; HIDDEN when another
+    surface stands between them (x leaves the list with nothing), else
+    GATHER."""
+    if dmin == 0.0 and d <= kappa_h:
+        if d <= tau_h and back_to_back(rec, recf, jr, pos_all, pos2, y):
+            return WAIT
+        if sheet_convex_edge(float(recf[jr + R_X]), float(recf[jr + R_Y]), float(recf[jr + R_Z]),
+                             float(recf[jr + R_NX]), float(recf[jr + R_NY]), float(recf[jr + R_NZ]), y, pos2, kappa_h):
+            return WAIT
+    if z_sheet:
         return WAIT
     if not (m == 1 and xe >= 0 and not ycut) and hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell,
                                                          cutp, tau_h):

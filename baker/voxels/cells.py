@@ -52,6 +52,32 @@ def merge_sheets(order, key, facing, sig, along, area, centroid, normal, sheet_g
     return vox
 
 
+@njit(cache=True)
+def join_voxels(vox_of, same, link):
+    """Union of voxels: pieces same[i] and same[i - 1] (positions in the
+    sorted pieces) with link[i] put their voxels together. Returns the root
+    (smallest id) of each voxel id."""
+    n = int(vox_of[-1]) + 1 if vox_of.shape[0] else 0
+    parent = np.arange(n)
+    for i in range(1, same.shape[0]):
+        if link[i]:
+            a, b = vox_of[same[i]], vox_of[same[i - 1]]
+            while parent[a] != a:
+                a = parent[a]
+            while parent[b] != b:
+                b = parent[b]
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    for v in range(n):
+        r = v
+        while parent[r] != r:
+            r = parent[r]
+        parent[v] = r
+    return parent
+
+
 def cell_runs(order, key):
     """Boundaries (m + 1,) of the runs of equal cell key in pieces sorted by key (order)."""
     k = key[order]
@@ -59,11 +85,11 @@ def cell_runs(order, key):
 
 
 @njit(cache=True)
-def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
+def side_signatures(order, runs, key, facing, area, centroid, normal, tol, patch):
     """For pieces sorted by cell key (order), a signature per piece: bit i
     set when the piece lies in front of (beyond tol, grid units) the plane
-    of the i-th piece of another facing in the same cell, not facing back
-    at it (within 25 degrees). Pieces of one
+    of the i-th piece of another facing and another smooth patch in the
+    same cell, not facing back at it (within 25 degrees). Pieces of one
     facing with different signatures are cut apart by another surface
     crossing the cell (a wall standing on two floors) and must not merge
     (docs/design.md section 4, straddling voxels). Cells with more than 63
@@ -78,7 +104,7 @@ def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
                 s = np.int64(0)
                 for j in range(a, min(b, a + 63)):
                     q = order[j]
-                    if facing[q] == facing[p]:
+                    if facing[q] == facing[p] or patch[q] == patch[p]:
                         continue
                     cos = normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2]
                     if cos < SHEET_BACK_COS:
@@ -94,9 +120,9 @@ def side_signatures(order, runs, key, facing, area, centroid, normal, tol):
 
 @njit(cache=True)
 def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
-                    min_part):
-    """For each piece: the piece of another facing and another triangle in
-    the same cell, not facing back at it, whose plane cuts it into two parts
+                    min_part, patch):
+    """For each piece: the piece of another facing, triangle and smooth
+    patch (patches.py) in the same cell, not facing back at it, whose plane cuts it into two parts
     of at least min_part cells^2 each (a floor running under a wall), else
     -1. One cut per piece: the one that leaves the larger smaller part."""
     n = by_cell.shape[0]
@@ -110,7 +136,7 @@ def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, cen
                 qx, qy, qz, m = piece_polygon(corners, piece_tri[p], origin, inv_h, piece_cell[p])
                 for j in range(a, b):
                     q = by_cell[j]
-                    if facing[q] == facing[p] or piece_tri[q] == piece_tri[p]:
+                    if facing[q] == facing[p] or piece_tri[q] == piece_tri[p] or patch[q] == patch[p]:
                         continue
                     nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
                     if nx * normal[p, 0] + ny * normal[p, 1] + nz * normal[p, 2] < SHEET_BACK_COS:
@@ -159,9 +185,9 @@ def split_pieces(cut, piece_tri, piece_cell, area, centroid, normal, corners, or
 
 
 @njit(cache=True)
-def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, planes, has):
-    """Cells where the plane of a piece q has two pieces of other triangles,
-    not parallel to it, clearly on both sides (beyond tol cells): a surface
+def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, patch, planes, has):
+    """Cells where the plane of a piece q has two pieces of other triangles
+    and smooth patches, not parallel to it, clearly on both sides (beyond tol cells): a surface
     standing between them inside the cell (a wall between two floors).
     Writes q's plane (normal, offset; grid units) into planes[i] and True
     into has[i] for every piece i of such a cell."""
@@ -175,7 +201,7 @@ def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, pla
                 front = back = False
                 for i in range(a, b):
                     p = by_cell[i]
-                    if piece_tri[p] == piece_tri[q]:
+                    if piece_tri[p] == piece_tri[q] or patch[p] == patch[q]:
                         continue
                     if abs(normal[p, 0] * nx + normal[p, 1] * ny + normal[p, 2] * nz) >= PARALLEL_COS:
                         continue
@@ -187,6 +213,8 @@ def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, pla
                 if front and back:
                     for i in range(a, b):
                         p = by_cell[i]
+                        if patch[p] == patch[q] and p != q:
+                            continue  # q's own surface is not across itself
                         planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3] = nx, ny, nz, d
                         has[p] = True
                     break

@@ -13,4 +13,6 @@ SHEET_BACK_COS = -0.9    # normals this opposite (within 25 degrees) are the two
 #                          from different triangles, and a digital line reaches its other face in the next cell
 PARALLEL_COS = 0.9       # |cos| at least this: the planes are parallel (one does not cut or separate the other),
 #                          and neighbouring voxels at least this aligned lie on the same surface
+SMOOTH_COS = 0.7         # triangles sharing an edge with normals within 45 degrees are one smooth surface in a cell
+#                          (a scan's or a fine tessellation's pieces; sharper creases are surfaces of their own)
 SAME_PLANE_COS = 0.999   # |cos| above this, with offsets within tau: the same plane

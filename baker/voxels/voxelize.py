@@ -14,12 +14,16 @@ area / h^2, never the bounding volume. The supercover of every triangle
    (`check_budget`, an O(triangles) lower bound first);
 3. clip: every triangle side clipped to every cell its plane crosses
    (`clip_sides`);
-4. straddlers: a piece that another surface's plane cuts in two inside
+4. patches: the pieces of a cell that belong to one smooth surface
+   (`find_patches`, patches.py): a patch never cuts, separates or splits
+   itself in the next steps;
+4b. straddlers: a piece that another surface's plane cuts in two inside
    the cell (a floor running under a wall) becomes two parts
    (`cut_straddlers`);
 5. crossed cells: every piece of a cell that a surface crosses learns its
    side of that surface (`mark_crossed_cells`);
-6. sheets: pieces merge into voxels per (cell, facing, sheet, side)
+6. sheets: pieces merge into voxels per (cell, facing, sheet, side),
+   and the pieces of one patch of one facing and side always merge
    (`group_pieces`);
 7. sums: area, centroid, normal, albedo, emission per voxel (`voxel_sums`);
 8. lookup: (triangle side, cell) -> voxel, for photons and camera rays
@@ -34,9 +38,11 @@ import numpy as np
 from ..errors import BudgetError
 from ..startup import checkpoint
 from .albedo import textured_albedo
-from .cells import cell_runs, find_straddlers, merge_sheets, separating_planes, side_signatures, split_pieces
+from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separating_planes, side_signatures,
+                    split_pieces)
 from .clip import clip_pieces, count_candidates
-from .tolerances import MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP
+from .patches import smooth_patches, triangle_adjacency
+from .tolerances import MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP, SMOOTH_COS
 
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
@@ -103,15 +109,19 @@ class Grid:
 class Pieces:
     """Triangle sides clipped to cells, in grid units: cell (m, 3) int32,
     area (m,) cells^2, centroid (m, 3) area-weighted sums, normal (m, 3)
-    unit, side (m,) int32, and (after step 4/5) plane (m, 4) of a surface
-    that cut or crosses the piece's cell with sign (m,) int8 its side."""
+    unit, side (m,) int32, (after step 4) patch (m,) int64 its smooth
+    patch, and (after step 4b/5) plane (m, 4) of a surface that cut or
+    crosses the piece's cell with sign (m,) int8 its side and plane_patch
+    (m,) int64 the patch of that surface (-1: none)."""
     cell: np.ndarray
     area: np.ndarray
     centroid: np.ndarray
     normal: np.ndarray
     side: np.ndarray
+    patch: np.ndarray | None = None
     plane: np.ndarray | None = None
     sign: np.ndarray | None = None
+    plane_patch: np.ndarray | None = None
 
     def keys_and_facings(self, dims):
         """(cell key (m,) int64, facing (m,) int8, dominant axis (m,))."""
@@ -206,22 +216,37 @@ def clip_sides(corners, sides_tri, sides_sign, grid: Grid, counts) -> Pieces:
     return Pieces(cell[keep], area[keep], cen[keep], nrm[keep], side[keep])
 
 
+def find_patches(pieces: Pieces, piece_tri, scene, grid: Grid) -> Pieces:
+    """Step 4: each piece's smooth patch (patches.py)."""
+    key, _, _ = pieces.keys_and_facings(grid.dims)
+    by_cell = np.argsort(key, kind="stable")
+    adj_start, adj = triangle_adjacency(scene.vertices, scene.triangles)
+    patch = smooth_patches(by_cell, cell_runs(by_cell, key), piece_tri.astype(np.int64), pieces.normal, adj_start,
+                           adj, SMOOTH_COS)
+    return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch)
+
+
 def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
-    """Step 4: a piece that another surface's plane cuts into two parts of at
-    least MIN_SPLIT_PART (a floor running under a wall) is replaced by its
-    front part (sign +1) and its back part (sign -1, appended), both
-    remembering the plane."""
+    """Step 4b: a piece that another surface's plane cuts into two parts of
+    at least MIN_SPLIT_PART (a floor running under a wall) is replaced by
+    its front part (sign +1) and its back part (sign -1, appended), both
+    remembering the plane and its patch."""
     key, facing, _ = pieces.keys_and_facings(grid.dims)
     by_cell = np.argsort(key, kind="stable")
     inv_h = 1.0 / grid.h
     cut = find_straddlers(by_cell, cell_runs(by_cell, key), key, facing, piece_tri, pieces.cell, pieces.area,
-                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART)
+                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART, pieces.patch)
     n0 = len(pieces.area)
     split = np.nonzero(cut >= 0)[0]
     plane = np.zeros((n0 + len(split), 4))
     sign = np.zeros(n0 + len(split), np.int8)
+    plane_patch = np.full(n0 + len(split), -1, np.int64)
+    plane_patch[split] = pieces.patch[cut[split]]
+    plane_patch[n0:] = pieces.patch[cut[split]]
+    patch = np.concatenate([pieces.patch, pieces.patch[split]])
     if not len(split):
-        return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, plane, sign)
+        return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch, plane, sign,
+                      plane_patch)
     extra = np.full(n0, -1, np.int64)
     extra[split] = n0 + np.arange(len(split))
     cell = np.concatenate([pieces.cell, pieces.cell[split]])
@@ -230,7 +255,7 @@ def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
     area = np.concatenate([pieces.area, np.zeros(len(split))])
     cen = np.concatenate([pieces.centroid, np.zeros((len(split), 3))])
     split_pieces(cut, piece_tri, cell, area, cen, nrm, corners, grid.origin, inv_h, extra, area, cen, plane, sign)
-    return Pieces(cell, area, cen, nrm, side, plane, sign)
+    return Pieces(cell, area, cen, nrm, side, patch, plane, sign, plane_patch)
 
 
 def mark_crossed_cells(pieces: Pieces, key, piece_tri):
@@ -238,20 +263,22 @@ def mark_crossed_cells(pieces: Pieces, key, piece_tri):
     running under a wall) or where a piece's plane separates others (a wall
     between two floors): every other piece not parallel to that plane takes
     its side of it (in place), so that its voxel knows the surface stands
-    there (the propagation's cut test, docs/design.md section 4)."""
+    there (the propagation's cut test, docs/design.md section 4); the
+    pieces of that surface's own patch do not."""
     n = len(pieces.area)
     cell_plane = np.zeros((n, 4))
     has = np.zeros(n, np.bool_)
     by_cell = np.argsort(key, kind="stable")
     runs = cell_runs(by_cell, key)
     separating_planes(by_cell, runs, piece_tri, pieces.area, pieces.centroid, pieces.normal, MIN_SEPARATION,
-                      cell_plane, has)
+                      pieces.patch, cell_plane, has)
     cut = pieces.sign != 0
     if cut.any():
         cut_keys, first = np.unique(key[cut], return_index=True)
         planes = pieces.plane[cut][first]
+        owner = pieces.plane_patch[cut][first]
         where = np.minimum(np.searchsorted(cut_keys, key), len(cut_keys) - 1)
-        in_cut = cut_keys[where] == key
+        in_cut = (cut_keys[where] == key) & (pieces.patch != owner[where])
         cell_plane[in_cut] = planes[where[in_cut]]
         has |= in_cut
     idx = np.nonzero(has & ~cut)[0]
@@ -269,14 +296,30 @@ def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs):
     """Step 6: (order (m,) of the pieces, voxel of each piece in that order
     (m,) int64). Pieces of a (cell, facing) merge unless another surface of
     the cell separates them (side signatures), they are the two parts of a
-    cut piece, or their planes lie over SHEET_GAP apart (sheets)."""
+    cut piece, or their planes lie over SHEET_GAP apart (sheets); but the
+    pieces of one smooth patch and facing merge despite the gap (a curved
+    surface's pieces lie on planes apart by its curvature), unless another
+    surface separates or cuts them."""
     along = pieces.centroid[np.arange(len(axis)), axis] / pieces.area
-    sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
+    sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP,
+                          pieces.patch)
     # the two parts of a cut piece never merge: fold the part into the signature
     group = np.unique(np.stack([sig, pieces.sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
     order = np.lexsort((along, group, facing, key))
     vox_of = merge_sheets(order, key, facing, group, along, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
-    return order, vox_of
+    # join the voxels holding pieces of one (patch, facing, signature and part, cutting surface), then renumber
+    # in order of first piece (the voxels stay in cell order) and make each voxel's pieces contiguous
+    keys = np.stack([pieces.patch, facing.astype(np.int64), group, pieces.plane_patch], axis=1)[order]
+    same = np.lexsort(keys.T[::-1])
+    ks = keys[same]
+    link = np.zeros(len(order), bool)
+    link[1:] = (ks[1:] == ks[:-1]).all(axis=1)
+    root = join_voxels(vox_of, same, link)
+    first = np.full(int(vox_of[-1]) + 1 if len(vox_of) else 0, len(order), np.int64)
+    np.minimum.at(first, root[vox_of], np.arange(len(order)))
+    new_of = np.unique(first[root[vox_of]], return_inverse=True)[1].ravel()
+    resort = np.argsort(new_of, kind="stable")
+    return order[resort], new_of[resort].astype(np.int64)
 
 
 def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corners, grid: Grid, surfaces):
@@ -361,6 +404,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     checkpoint()
     pieces = clip_sides(corners, sides_tri, sides_sign, grid, counts)
     checkpoint()
+    pieces = find_patches(pieces, sides_tri[pieces.side], scene, grid)
     pieces = cut_straddlers(pieces, sides_tri[pieces.side], corners, grid)
     key, facing, axis = pieces.keys_and_facings(grid.dims)
     by_cell, runs = mark_crossed_cells(pieces, key, sides_tri[pieces.side])
