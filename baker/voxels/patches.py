@@ -74,12 +74,25 @@ def _root(parent, i):
 
 
 @njit(cache=True)
+def _join(parent, p, q):
+    rp, rq = _root(parent, p), _root(parent, q)
+    if rp < rq:
+        parent[rq] = rp
+    elif rq < rp:
+        parent[rp] = rq
+
+
+@njit(cache=True)
 def smooth_patches(by_cell, runs, piece_tri, normal, adj_start, adj, smooth_cos):
-    """Patch id (m,) int64 of each piece: pieces of one cell whose triangles
-    share an edge and whose (side) normals agree within smooth_cos are
-    joined, transitively; the id is the smallest piece index of the patch."""
+    """(patch (m,) int64, surface (m,) int64) of each piece. Patch: pieces of
+    one cell whose triangles share an edge and whose side normals agree
+    within smooth_cos, joined transitively (one face of a smooth surface).
+    Surface: the same with either side of each triangle, and a triangle's
+    two sides joined (both faces of a smooth two-sided surface: a surface
+    never cuts or separates itself). Ids are the smallest piece index."""
     m = by_cell.shape[0]
     parent = np.arange(m)
+    both = np.arange(m)
     for r in range(runs.shape[0] - 1):
         a, b = runs[r], runs[r + 1]
         k = b - a
@@ -93,8 +106,8 @@ def smooth_patches(by_cell, runs, piece_tri, normal, adj_start, adj, smooth_cos)
         for i in range(k):
             p = by_cell[a + i]
             t = piece_tri[p]
-            for e in range(adj_start[t], adj_start[t + 1]):
-                u = adj[e]
+            for e in range(adj_start[t] - 1, adj_start[t + 1]):
+                u = t if e < adj_start[t] else adj[e]  # the triangle itself (its other side), then its neighbours
                 lo, hi = 0, k
                 while lo < hi:
                     mid = (lo + hi) // 2
@@ -105,14 +118,16 @@ def smooth_patches(by_cell, runs, piece_tri, normal, adj_start, adj, smooth_cos)
                 while lo < k and tris[srt[lo]] == u:
                     q = by_cell[a + srt[lo]]
                     lo += 1
+                    if q == p:
+                        continue
                     cos = normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2]
-                    if cos > smooth_cos:
-                        rp, rq = _root(parent, p), _root(parent, q)
-                        if rp < rq:
-                            parent[rq] = rp
-                        elif rq < rp:
-                            parent[rp] = rq
+                    if u == t or abs(cos) > smooth_cos:
+                        _join(both, p, q)
+                    if u != t and cos > smooth_cos:
+                        _join(parent, p, q)
     patch = np.empty(m, np.int64)
+    surface = np.empty(m, np.int64)
     for i in range(m):
         patch[i] = _root(parent, i)
-    return patch
+        surface[i] = _root(both, i)
+    return patch, surface

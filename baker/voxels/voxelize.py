@@ -110,15 +110,16 @@ class Pieces:
     """Triangle sides clipped to cells, in grid units: cell (m, 3) int32,
     area (m,) cells^2, centroid (m, 3) area-weighted sums, normal (m, 3)
     unit, side (m,) int32, (after step 4) patch (m,) int64 its smooth
-    patch, and (after step 4b/5) plane (m, 4) of a surface that cut or
+    patch and surface (m,) int64 that patch with its other face, and (after step 4b/5) plane (m, 4) of a surface that cut or
     crosses the piece's cell with sign (m,) int8 its side and plane_patch
-    (m,) int64 the patch of that surface (-1: none)."""
+    (m,) int64 that surface's id (-1: none)."""
     cell: np.ndarray
     area: np.ndarray
     centroid: np.ndarray
     normal: np.ndarray
     side: np.ndarray
     patch: np.ndarray | None = None
+    surface: np.ndarray | None = None
     plane: np.ndarray | None = None
     sign: np.ndarray | None = None
     plane_patch: np.ndarray | None = None
@@ -221,9 +222,9 @@ def find_patches(pieces: Pieces, piece_tri, scene, grid: Grid) -> Pieces:
     key, _, _ = pieces.keys_and_facings(grid.dims)
     by_cell = np.argsort(key, kind="stable")
     adj_start, adj = triangle_adjacency(scene.vertices, scene.triangles)
-    patch = smooth_patches(by_cell, cell_runs(by_cell, key), piece_tri.astype(np.int64), pieces.normal, adj_start,
-                           adj, SMOOTH_COS)
-    return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch)
+    patch, surface = smooth_patches(by_cell, cell_runs(by_cell, key), piece_tri.astype(np.int64), pieces.normal,
+                                    adj_start, adj, SMOOTH_COS)
+    return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch, surface)
 
 
 def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
@@ -235,18 +236,19 @@ def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
     by_cell = np.argsort(key, kind="stable")
     inv_h = 1.0 / grid.h
     cut = find_straddlers(by_cell, cell_runs(by_cell, key), key, facing, piece_tri, pieces.cell, pieces.area,
-                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART, pieces.patch)
+                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART, pieces.surface)
     n0 = len(pieces.area)
     split = np.nonzero(cut >= 0)[0]
     plane = np.zeros((n0 + len(split), 4))
     sign = np.zeros(n0 + len(split), np.int8)
     plane_patch = np.full(n0 + len(split), -1, np.int64)
-    plane_patch[split] = pieces.patch[cut[split]]
-    plane_patch[n0:] = pieces.patch[cut[split]]
+    plane_patch[split] = pieces.surface[cut[split]]
+    plane_patch[n0:] = pieces.surface[cut[split]]
     patch = np.concatenate([pieces.patch, pieces.patch[split]])
+    surface = np.concatenate([pieces.surface, pieces.surface[split]])
     if not len(split):
-        return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch, plane, sign,
-                      plane_patch)
+        return Pieces(pieces.cell, pieces.area, pieces.centroid, pieces.normal, pieces.side, patch, surface, plane,
+                      sign, plane_patch)
     extra = np.full(n0, -1, np.int64)
     extra[split] = n0 + np.arange(len(split))
     cell = np.concatenate([pieces.cell, pieces.cell[split]])
@@ -255,7 +257,7 @@ def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
     area = np.concatenate([pieces.area, np.zeros(len(split))])
     cen = np.concatenate([pieces.centroid, np.zeros((len(split), 3))])
     split_pieces(cut, piece_tri, cell, area, cen, nrm, corners, grid.origin, inv_h, extra, area, cen, plane, sign)
-    return Pieces(cell, area, cen, nrm, side, patch, plane, sign, plane_patch)
+    return Pieces(cell, area, cen, nrm, side, patch, surface, plane, sign, plane_patch)
 
 
 def mark_crossed_cells(pieces: Pieces, key, piece_tri):
@@ -271,14 +273,14 @@ def mark_crossed_cells(pieces: Pieces, key, piece_tri):
     by_cell = np.argsort(key, kind="stable")
     runs = cell_runs(by_cell, key)
     separating_planes(by_cell, runs, piece_tri, pieces.area, pieces.centroid, pieces.normal, MIN_SEPARATION,
-                      pieces.patch, cell_plane, has)
+                      pieces.surface, cell_plane, has)
     cut = pieces.sign != 0
     if cut.any():
         cut_keys, first = np.unique(key[cut], return_index=True)
         planes = pieces.plane[cut][first]
         owner = pieces.plane_patch[cut][first]
         where = np.minimum(np.searchsorted(cut_keys, key), len(cut_keys) - 1)
-        in_cut = (cut_keys[where] == key) & (pieces.patch != owner[where])
+        in_cut = (cut_keys[where] == key) & (pieces.surface != owner[where])
         cell_plane[in_cut] = planes[where[in_cut]]
         has |= in_cut
     idx = np.nonzero(has & ~cut)[0]
@@ -302,7 +304,7 @@ def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs):
     surface separates or cuts them."""
     along = pieces.centroid[np.arange(len(axis)), axis] / pieces.area
     sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP,
-                          pieces.patch)
+                          pieces.surface)
     # the two parts of a cut piece never merge: fold the part into the signature
     group = np.unique(np.stack([sig, pieces.sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
     order = np.lexsort((along, group, facing, key))
