@@ -20,6 +20,9 @@ import os as _os
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from .startup import hold_interrupts  # noqa: E402
+from .kernel_cache import sync as _sync_kernel_cache  # noqa: E402
+
+_sync_kernel_cache()  # cached kernels compiled from other sources are dropped (kernel_cache.py)
 
 hold_interrupts()  # a command's Ctrl-C during these imports is answered once the command runs (cli.run)
 

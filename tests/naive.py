@@ -87,22 +87,25 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     o = dot(normal[v], u)
                     # ties: +1 first (a box on a floor), but a sheet's faces -1 first (back to back)
                     return (sign * int(cell[v][k]), dot(centroid[v], u), 1 if (o > 0) == bool(sheet[v]) else 0)
-                def cut_between(a, b):
+                def cut_between(a, b, a_waits):
+                    """0: clear; 1: the cutting surface hides b from a (the waiting
+                    voxel's ray heads for it); 2: it stands between, the ray moves away"""
                     sign = cut[a][4]
                     if sign == 0:
-                        return False
+                        return 0
                     n_, d_ = cut[a][:3], cut[a][3]
                     sa, sb = dot(centroid[a], n_) - d_, dot(centroid[b], n_) - d_
                     if abs(sb) <= tau * h:  # b on that surface: the side it faces
-                        return dot(normal[b], n_) * sign < -0.5
+                        return 1 if dot(normal[b], n_) * sign < -0.5 else 0
                     if sb * sign >= -tau * h or sa == sb:
-                        return False
+                        return 0
+                    way = 1 if dot(n_, u) * (sign if a_waits else -sign) < 0 else 2
                     if cut[b][4] != 0:
                         cn = dot(n_, cut[b][:3])
                         if abs(cn) > 0.999 and abs(d_ - cn * cut[b][3]) < tau * h:
-                            return True
+                            return way
                     p = centroid[a] + (centroid[b] - centroid[a]) * (sa / (sa - sb))
-                    return bool(np.all(p >= cell[a] - 3.0) and np.all(p <= cell[a] + 4.0))
+                    return way if bool(np.all(p >= cell[a] - 3.0) and np.all(p <= cell[a] + 4.0)) else 0
 
                 def hidden_by(q, x, y):
                     sx = dot(centroid[x] - centroid[q], normal[q])
@@ -112,7 +115,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     p = centroid[x] + (centroid[y] - centroid[x]) * (sx / (sx - sy))
                     lo = origin + cell[y] * h
                     inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
-                    return inside and dot(p - centroid[y], normal[y]) * dot(centroid[q] - centroid[y], normal[y]) > 0
+                    if not (inside and dot(p - centroid[y], normal[y]) * dot(centroid[q] - centroid[y], normal[y]) > 0):
+                        return 0
+                    return 1 if dot(normal[q], u) * sx < 0 else 2  # x's ray heads for q's plane, or moves away
                 waiting, last = [], None
                 passed = {}  # waiting voxel -> the last voxel parallel to the line it passed, beyond tau of its plane
                 for y in sorted(members, key=order_key):
@@ -133,16 +138,20 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                             backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.99 and d <= tau * h
                             backs = backs or edge_last or sheet_edge(x)
                             if d >= (0.0 if sheet[y] else -tau * h) and not backs:
-                                between = any(hidden_by(q, x, y) for q in members
-                                              if q not in (x, y) and tuple(cell[q]) == tuple(cell[y]))
+                                ways = [hidden_by(q, x, y) for q in members
+                                        if q not in (x, y) and tuple(cell[q]) == tuple(cell[y])]
                                 if cut is not None:
-                                    between = between or cut_between(y, x) or cut_between(x, y)
+                                    ways += [cut_between(y, x, False), cut_between(x, y, True)]
                                     d_xy = dot(centroid[x] - centroid[y], normal[y])
                                     if d_xy < 0 and cut[x][4] != 0:  # x's cell is cut by y's own plane
                                         cn = dot(cut[x][:3], normal[y])
                                         same = abs(cn) > 0.999 and \
                                             abs(cut[x][3] - cn * dot(centroid[y], normal[y])) < tau * h
-                                        between = between or same
+                                        ways.append(1 if same else 0)
+                                between = 1 in ways
+                                if not between and 2 in ways:  # a surface stands between, x's ray moves away
+                                    keep.append(x)
+                                    continue
                                 if x in passed:  # across the plane of a surface the line ran along
                                     w = passed[x]
                                     sx = dot(centroid[x] - centroid[w], normal[w])

@@ -166,3 +166,47 @@ def test_cut_voxel_is_hidden_across_its_cutting_surface():
     assert seen(cut)[0] == -1
     whole = line(dict(x=0.5, n=PLUS), dict(x=4.5, n=MINUS))
     assert seen(whole)[0] == 1
+
+
+def test_inner_face_of_a_convex_sheet_is_passed():
+    """A convex two-sided surface curving away below the line (a scanned
+    shell): the next cell holds both faces of the sheet; its inner face
+    faces the ray, just behind the outer face's plane. The ray passes over
+    the surface, as it passes the outer face's back (a convex edge), and
+    meets what lies beyond, not the shell's dark inside."""
+    vox = line(dict(x=0.5, n=(0.2, 1, 0), sheet=True),            # the outer face, sending along +x
+               dict(x=1.5, y=0.2, n=(-0.5, -1, 0), sheet=True),   # the next cell: the inner face, facing the ray
+               dict(x=1.5, y=0.2, n=(0.5, 1, 0), sheet=True),     # ... and the outer face, turning its back
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 3
+
+
+@pytest.mark.parametrize("heads_for_it", [False, True])
+def test_cutting_surface_hides_only_what_the_ray_heads_for(heads_for_it):
+    """A voxel cut by another surface's plane, and a voxel on that plane's
+    other side a cell further on the same (cell-thick) line: the surface
+    stands between them. When the ray moves away from the plane it never
+    reaches its other side: the first voxel keeps waiting and meets the
+    voxel beyond, on its own side; when the ray heads for the plane, the
+    surface is in its way and it gathers nothing."""
+    if heads_for_it:
+        plane, farther = ((-1, 4, 0), 0.2, 1), -1
+    else:
+        plane, farther = ((1, 4, 0), 0.85, 1), 2
+    vox = line(dict(x=0.5, y=0.9, n=PLUS, cut=plane),
+               dict(x=2.5, y=0.1, n=MINUS),    # across the plane
+               dict(x=4.5, y=0.5, n=MINUS))   # on the first voxel's side (moving away), or across as well
+    assert seen(vox)[0] == farther
+
+
+def test_inner_face_of_a_convex_sheet_is_passed_along_the_chain():
+    """Further along the convex shell the inner face lies more than kappa
+    in front of the waiting voxel's position: the outer face that joined
+    the line last (z) and the sheet there form the convex edge instead."""
+    vox = line(dict(x=0.5, y=0.95, n=(0.1, 1, 0), sheet=True),     # the waiting outer face
+               dict(x=1.5, y=0.7, n=(-0.2, -1, 0), sheet=True),    # a cell on: inner face (x lies behind it) ...
+               dict(x=1.5, y=0.7, n=(0.2, 1, 0), sheet=True),      # ... and outer face: joins the line (z)
+               dict(x=3.5, y=0.0, n=(-1, -1, 0), sheet=True),      # further down the curve: inner face ...
+               dict(x=3.5, y=0.0, n=(1, 1, 0), sheet=True),        # ... and outer face
+               dict(x=5.5, n=MINUS))
+    assert seen(vox)[0] == 5

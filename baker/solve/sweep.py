@@ -186,7 +186,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                     what = front_outcome(d, dmin, tau, kappa, z_sheet, m, xe, ycut, rec[jr + R_PASSED])
                     if what == CHECK:
                         what = front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf,
-                                           gcell, cutp, tau, kappa)
+                                           gcell, cutp, tau, kappa, ux, uy, uz)
                     if what == WAIT:
                         prev = j
                         j = nj

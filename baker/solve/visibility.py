@@ -50,15 +50,22 @@ SEGMENT_REACH = 0.5    # cells beyond y's cell where a surface crossing it is ta
 #                        line may step past the cell where it crosses)
 FACES_AWAY = -0.5      # a voxel on a cutting surface faces away from the cut part below this cosine
 
+CLEAR, HIDES, AWAY = 0, 1, 2  # a surface between x and y: none; in the way of x's ray; behind it (the ray moves
+#                               away from it: y is on the line only because the line is a cell thick)
+
 
 
 @njit(cache=True)
-def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2):
-    """Is y hidden from x by another voxel q of y's cell? True when q's plane
-    lies between them (beyond tau on each side), the segment from x's
+def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
+    """Is y hidden from x by another voxel q of y's cell? HIDES when q's
+    plane lies between them (beyond tau on each side), the segment from x's
     centroid to y's crosses that plane within SEGMENT_REACH of y's cell, on
-    the side of y's plane where q's piece is: a surface crossing the cell (a
-    wall standing on a floor) is in the way."""
+    the side of y's plane where q's piece is, and x's ray (along u) heads
+    for that plane: a surface crossing the cell (a wall standing on a
+    floor) is in the way. AWAY when such planes are there but x's ray moves
+    away from (or along) each of them: it never reaches their other side.
+    Else CLEAR."""
+    out = CLEAR
     for i in range(m):
         e = buf[i]
         q = e if e >= 0 else -e - 1
@@ -86,8 +93,10 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2):
                 qside = (float(pos[q, P_X]) - y0) * n0 + (float(pos[q, P_Y]) - y1) * n1 + \
                     (float(pos[q, P_Z]) - y2) * n2
                 if pside * qside > 0.0:
-                    return True
-    return False
+                    if (float(pos[q, P_NX]) * ux + float(pos[q, P_NY]) * uy + float(pos[q, P_NZ]) * uz) * sx < 0.0:
+                        return HIDES
+                    out = AWAY
+    return out
 
 
 @njit(cache=True)
@@ -104,14 +113,18 @@ def cut_by(px, x, pos, y, cutp, tau_h):
 
 
 @njit(cache=True)
-def cut_between(pa, a, pb, b, cutp, tau_h):
+def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
     on the other side of that plane and the segment a-b crosses it within
     CUT_REACH cells of a's cell, or b's cell is cut by the same plane (the
-    surface runs past both ends), that surface stands between them."""
+    surface runs past both ends), that surface stands between them: HIDES
+    when the waiting voxel's ray (along u; a_waits: a is the waiting voxel,
+    else b) heads for that plane, AWAY when it moves away from or along it
+    (y is on the line only because the line is a cell thick); b on that
+    surface facing away from a: HIDES; else CLEAR."""
     if pa[a, P_CUT] == 0.0:
-        return False
+        return CLEAR
     sign = cut_side(pa, a)
     j = cut_row(pa, a)
     nx, ny, nz, d = cutp[j, C_NX], cutp[j, C_NY], cutp[j, C_NZ], cutp[j, C_D]
@@ -122,21 +135,26 @@ def cut_between(pa, a, pb, b, cutp, tau_h):
     if abs(sb) <= tau_h:
         # b lies on that surface (a face of it, or of a sheet along it): the side it faces
         facing = float(pb[b, P_NX]) * nx + float(pb[b, P_NY]) * ny + float(pb[b, P_NZ]) * nz
-        return facing * sign < FACES_AWAY
+        return HIDES if facing * sign < FACES_AWAY else CLEAR
     if sb * sign >= -tau_h or sa == sb:
-        return False
+        return CLEAR
+    # the waiting voxel's ray heads for the plane from its side: the surface is in its way
+    side = sign if a_waits else -sign
+    way = HIDES if (nx * ux + ny * uy + nz * uz) * side < 0.0 else AWAY
     if pb[b, P_CUT] != 0.0:
         jb = cut_row(pb, b)
         dot = nx * cutp[jb, C_NX] + ny * cutp[jb, C_NY] + nz * cutp[jb, C_NZ]
         if abs(dot) > SAME_PLANE_COS and abs(d - dot * cutp[jb, C_D]) < tau_h:
-            return True
+            return way
     lam = sa / (sa - sb)
     p0 = a0 + (b0 - a0) * lam
     p1 = a1 + (b1 - a1) * lam
     p2 = a2 + (b2 - a2) * lam
-    return cutp[j, C_CX] - CUT_REACH <= p0 <= cutp[j, C_CX] + 1.0 + CUT_REACH and \
-        cutp[j, C_CY] - CUT_REACH <= p1 <= cutp[j, C_CY] + 1.0 + CUT_REACH and \
-        cutp[j, C_CZ] - CUT_REACH <= p2 <= cutp[j, C_CZ] + 1.0 + CUT_REACH
+    if cutp[j, C_CX] - CUT_REACH <= p0 <= cutp[j, C_CX] + 1.0 + CUT_REACH and \
+            cutp[j, C_CY] - CUT_REACH <= p1 <= cutp[j, C_CY] + 1.0 + CUT_REACH and \
+            cutp[j, C_CZ] - CUT_REACH <= p2 <= cutp[j, C_CZ] + 1.0 + CUT_REACH:
+        return way
+    return CLEAR
 
 
 @njit(cache=True)
@@ -216,16 +234,29 @@ def order_cell(a, m, pos, ux, uy, uz, buf, bkey):
 
 
 @njit(cache=True)
-def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h):
-    """Is y, facing x's waiting ray within tau, hidden from x by another
-    surface: one crossing y's cell, or one that cut x's or y's pieces?"""
-    if m > 1 and separated(px, x, pos, y, buf, m, tau_h, float(gcell[g, 0]), float(gcell[g, 1]),
-                           float(gcell[g, 2])):
-        return True
+def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, uz):
+    """Is y, facing x's waiting ray (along u) within tau, hidden from x by
+    another surface: one crossing y's cell, or one that cut x's or y's
+    pieces? HIDES (x's ray heads into such a surface), AWAY (such surfaces
+    stand between them, but x's ray moves away from each: x keeps waiting)
+    or CLEAR."""
+    out = CLEAR
+    if m > 1:
+        out = separated(px, x, pos, y, buf, m, tau_h, float(gcell[g, 0]), float(gcell[g, 1]), float(gcell[g, 2]),
+                        ux, uy, uz)
+        if out == HIDES:
+            return HIDES
     if xcut or ycut:
-        return cut_between(pos, y, px, x, cutp, tau_h) or cut_between(px, x, pos, y, cutp, tau_h) or \
-            (d < 0.0 and xcut and cut_by(px, x, pos, y, cutp, tau_h))
-    return False
+        if d < 0.0 and xcut and cut_by(px, x, pos, y, cutp, tau_h):
+            return HIDES
+        for k in range(2):
+            c = cut_between(pos, y, px, x, cutp, tau_h, ux, uy, uz, False) if k == 0 else \
+                cut_between(px, x, pos, y, cutp, tau_h, ux, uy, uz, True)
+            if c == HIDES:
+                return HIDES
+            if c == AWAY:
+                out = AWAY
+    return out
 
 
 @njit(cache=True)
@@ -290,12 +321,13 @@ def front_outcome(d, dmin, tau_h, kappa_h, z_sheet, m, xe, ycut, passed):
 
 @njit(cache=True)
 def front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf, gcell, cutp, tau_h,
-                kappa_h):
+                kappa_h, ux, uy, uz):
     """The rarer cases of front_outcome: WAIT when y is the back of x's own
     sheet, or the other face of a sheet whose face forms a convex edge with
-    x or (z_sheet) with the voxel last added to the list; HIDDEN when another
-    surface stands between them (x leaves the list with nothing), else
-    GATHER."""
+    x or (z_sheet) with the voxel last added to the list, or another
+    surface stands between them that x's ray moves away from; HIDDEN when
+    x's ray heads into another surface standing between them (x leaves the
+    list with nothing), else GATHER."""
     if dmin == 0.0 and d <= kappa_h:
         if d <= tau_h and back_to_back(rec, recf, jr, pos_all, pos2, y):
             return WAIT
@@ -304,9 +336,12 @@ def front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, 
             return WAIT
     if z_sheet:
         return WAIT
-    if not (m == 1 and xe >= 0 and not ycut) and hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell,
-                                                         cutp, tau_h):
-        return HIDDEN
+    if not (m == 1 and xe >= 0 and not ycut):
+        h = hidden(pos_all, x, pos2, y, xe < 0, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, uz)
+        if h == HIDES:
+            return HIDDEN
+        if h == AWAY:
+            return WAIT
     if rec[jr + R_PASSED] != EMPTY and across(rec, recf, jr, pos2, y, tau_h):
         return HIDDEN
     return GATHER
