@@ -374,6 +374,48 @@ def shadow_test(radiance=8.0):
     return b
 
 
+def scan_shell(subdiv=5, radius=0.4, seed=7, lumps=0.18, noise_mm=1.5):
+    """A scan-like shell: an icosphere (subdiv 5: 20480 triangles, a few
+    per voxel cell at the default preset) bent by a few seeded
+    low-frequency lumps and roughened by per-vertex noise, like a
+    reconstructed scan (adjacent triangles 1-40 degrees apart). Standing on
+    y = 0 with its bottom cut open (a scan's hole where it stood), centred
+    at x = z = 0."""
+    pos, tri = icosphere(subdiv, 1.0)
+    rng = np.random.default_rng(seed)
+    r = np.ones(len(pos))
+    for _ in range(6):  # lumps: smooth bumps around random directions
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        r += lumps * rng.uniform(0.3, 1.0) * np.exp(-((pos @ d - 1.0) ** 2) / 0.15)
+    r = r * radius + rng.normal(scale=noise_mm * 1e-3, size=len(pos))
+    pos = pos * r[:, None]
+    pos[:, 1] += 0.9 * radius  # sunk a little into the floor ...
+    keep = pos[tri].mean(axis=1)[:, 1] > 0.0  # ... and cut open there
+    tri = tri[keep]
+    used = np.unique(tri)
+    remap = np.full(len(pos), -1)
+    remap[used] = np.arange(len(used))
+    return pos[used], remap[tri]
+
+
+def scan_room(albedo=0.7, light_radiance=20.0):
+    """A scan-like two-sided shell (`scan_shell`) standing in a closed white
+    room under a small ceiling light: the case of a scanned model read from
+    a PLY file (two-sided, noisy curved surface, resting on the floor)."""
+    b = GltfBuilder()
+    wall = b.material("wall", (albedo,) * 3)
+    obj = b.material("scan", (albedo,) * 3, double_sided=True)
+    light = b.material("light", (0.8,) * 3, emission=(light_radiance,) * 3)
+    b.mesh("room", *box((-1, 0, -1), (1, 2, 1), inward=True), wall)
+    pos, tri = scan_shell()
+    b.mesh("scan", pos + [0.0, 0.0, 0.1], tri, obj)
+    b.mesh("light", *quad((-0.15, 1.99, -0.15), (0.15, 1.99, -0.15), (0.15, 1.99, 0.15), (-0.15, 1.99, 0.15),
+                          facing=(0, -1, 0)), light)
+    b.camera("room", (0.0, 1.0, -0.98), (0, -0.35, 1), yfov_deg=60)
+    return b
+
+
 def walkthrough(columns_segments=96, column_rings=64):
     """Procedural building: a row of rooms joined by doors, windows in the
     outer walls (sun outside), columns in the hall, a stair to a mezzanine,
@@ -453,6 +495,7 @@ SCENES = {
     "emission_split": lambda: emission_test(10),
     "shadow_test": shadow_test,
     "walkthrough": walkthrough,
+    "scan_room": scan_room,
 }
 
 

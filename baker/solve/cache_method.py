@@ -71,7 +71,7 @@ def first_bounce_irradiance(vox, deposited):
     its largest neighbour on the same surface (photon noise scales as
     1 / sqrt(area): slivers would be spikes)."""
     h1 = deposited / vox.area[:, None]
-    parent = pool_parents(vox.key, vox.facing, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
+    parent = pool_parents(vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
                           vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2, vox.cut_plane, vox.cut_sign, vox.origin)
     tiny = np.nonzero(parent >= 0)[0]
     if len(tiny):

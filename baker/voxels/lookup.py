@@ -66,11 +66,12 @@ def _same_side(a, b, vcell, vcentroid, cut_plane, cut_sign, origin, h):
 
 
 @njit(cache=True, parallel=True)
-def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_area, cut_plane, cut_sign, origin):
+def pool_parents(vkey, vcell, vcentroid, vnormal, varea, dims, h, min_area, cut_plane, cut_sign, origin):
     """For each voxel smaller than min_area: the largest voxel of the same
-    surface around it (same facing, normals within ~25 degrees, planes
-    within h / 4, in its cell or the 26 neighbours, on the same side of any
-    surface cutting either one's cell), else -1. Photon
+    surface around it (normals within ~25 degrees, of any facing: a curved
+    surface's voxels of two facings share a cell; planes within h / 4, in
+    its cell or the 26 neighbours, on the same side of any surface cutting
+    either one's cell), else -1. Photon
     estimates of tiny voxels (a triangle grazing a cell corner) are pooled
     with it: one photon in a 1e-6-cell sliver would otherwise be a spike.
     The 25 degrees are PARALLEL_COS, the h / 4 is POOL_PLANE (in cells)."""
@@ -91,7 +92,7 @@ def pool_parents(vkey, vfacing, vcell, vcentroid, vnormal, varea, dims, h, min_a
                     while lo < n and vkey[lo] == key:
                         j = lo
                         lo += 1
-                        if j == i or vfacing[j] != vfacing[i] or varea[j] <= best_a or varea[j] <= varea[i]:
+                        if j == i or varea[j] <= best_a or varea[j] <= varea[i]:
                             continue
                         cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + \
                             vnormal[i, 2] * vnormal[j, 2]
