@@ -135,7 +135,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         keep = []
                         for x in waiting:
                             d = dot(centroid[x] - centroid[y], normal[y])
-                            backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.99 and d <= tau * h
+                            ex = dot(centroid[y] - centroid[x], normal[x])
+                            backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.5 and \
+                                d <= kappa * h and ex <= kappa * h
                             backs = backs or edge_last or sheet_edge(x)
                             if d >= (0.0 if sheet[y] else -tau * h) and not backs:
                                 ways = [hidden_by(q, x, y) for q in members
@@ -169,7 +171,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         def convex(z):
                             dz = dot(centroid[z] - centroid[y], normal[y])
                             ez = dot(centroid[y] - centroid[z], normal[z])
-                            return dz < 0 and ez < 0 and dz >= -kappa * h
+                            return dz < 0 and ez < tau * h and dz >= -kappa * h
                         edge_last = last is not None and convex(last)
                         waiting = [x for x in waiting if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h
                                    or edge_last or convex(x)]

@@ -235,7 +235,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                     if d < -tau:
                         if not z_known:  # the convex-edge test of the voxel last added, once per y
                             z_known = True
-                            z_edge = convex_edge(last, y, pos2, kappa)
+                            z_edge = convex_edge(last, y, pos2, tau, kappa)
                         ex = (cy0 - float(recf[jr + R_X])) * float(recf[jr + R_NX]) + \
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])

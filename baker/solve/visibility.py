@@ -50,6 +50,9 @@ SEGMENT_REACH = 0.5    # cells beyond y's cell where a surface crossing it is ta
 #                        line may step past the cell where it crosses)
 FACES_AWAY = -0.5      # a voxel on a cutting surface faces away from the cut part below this cosine
 
+OWN_BACK_COS = -0.5    # a sheet face within kappa of a waiting sheet face, facing it with a normal at least this
+#                        opposite, is that surface's own other face (a noisy curved sheet's faces in one cell split
+#                        into different facings: their normals can be 30-60 degrees off opposite)
 CLEAR, HIDES, AWAY = 0, 1, 2  # a surface between x and y: none; in the way of x's ray; behind it (the ray moves
 #                               away from it: y is on the line only because the line is a cell thick)
 
@@ -189,20 +192,33 @@ def across(rec, recf, jr, pos, y, tau_h):
 
 
 @njit(cache=True)
-def back_to_back(rec, recf, jr, pos_all, pos, y):
-    """Is y, facing the waiting voxel x (record at jr) within tau of x's
-    plane, the back of x's own sheet (both faces of two-sided surfaces, with
-    normals opposite within SHEET_BACK_COS: on a curved sheet the faces in
-    one cell can come from different pieces)? Then x does not see it: a
-    digital line a cell thick can meet the sheet's other face in the next
-    cell before it leaves the sheet's plane."""
+def back_to_back(rec, recf, jr, pos_all, pos, y, d, kappa_h):
+    """Is y, facing the waiting voxel x (record at jr), d = (c_x - c_y) . n_y
+    in front of y's plane, the other face of x's own two-sided surface?
+    Both are faces of sheets, with normals opposite within OWN_BACK_COS
+    (on a curved or noisy sheet the faces in one cell can come from
+    different pieces, grouped into different facings), each within kappa
+    of the other's plane. A continuous ray
+    leaving a smooth two-sided surface's face never meets that surface's
+    other face nearby (it would have to cross the surface first); a digital
+    line a cell thick does, for a few cells, where the surface is curved or
+    noisy. Then x does not see it. (Another sheet facing x from more than
+    kappa away is seen; two sheets closer than that are one surface at
+    this resolution.)"""
+    if d > kappa_h:
+        return False
     dot = float(recf[jr + R_NX]) * float(pos[y, P_NX]) + float(recf[jr + R_NY]) * float(pos[y, P_NY]) + \
         float(recf[jr + R_NZ]) * float(pos[y, P_NZ])
-    if dot > SHEET_BACK_COS:
+    if dot > OWN_BACK_COS:
         return False
     xe = np.int64(rec[jr + R_VOXEL])
     x = xe if xe >= 0 else -xe - 1
-    return is_sheet(pos, y) and is_sheet(pos_all, x)
+    if not (is_sheet(pos, y) and is_sheet(pos_all, x)):
+        return False
+    ex = (float(pos[y, P_X]) - float(recf[jr + R_X])) * float(recf[jr + R_NX]) + \
+        (float(pos[y, P_Y]) - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
+        (float(pos[y, P_Z]) - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
+    return ex <= kappa_h
 
 
 @njit(cache=True)
@@ -260,14 +276,16 @@ def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, 
 
 
 @njit(cache=True)
-def convex_edge(z, y, pos, kappa_h):
+def convex_edge(z, y, pos, tau_h, kappa_h):
     """Do z (the voxel last added to the line) and y, which turns its back,
-    form a convex edge: each just behind the other's plane, within kappa?"""
+    form a convex edge: z just behind y's plane, within kappa, and y behind
+    z's plane or within tau in front of it (two facings of one noisy
+    surface in a cell: a flat junction)?"""
     z0, z1, z2 = float(pos[z, P_X]), float(pos[z, P_Y]), float(pos[z, P_Z])
     y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
     dz = (z0 - y0) * float(pos[y, P_NX]) + (z1 - y1) * float(pos[y, P_NY]) + (z2 - y2) * float(pos[y, P_NZ])
     ez = (y0 - z0) * float(pos[z, P_NX]) + (y1 - z1) * float(pos[z, P_NY]) + (y2 - z2) * float(pos[z, P_NZ])
-    return dz < 0.0 and ez < 0.0 and dz >= -kappa_h
+    return dz < 0.0 and ez < tau_h and dz >= -kappa_h
 
 
 WAIT, GATHER, HIDDEN, CHECK = 0, 1, 2, 3   # what a waiting voxel in front of a voxel facing it does
@@ -329,7 +347,7 @@ def front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, 
     x's ray heads into another surface standing between them (x leaves the
     list with nothing), else GATHER."""
     if dmin == 0.0 and d <= kappa_h:
-        if d <= tau_h and back_to_back(rec, recf, jr, pos_all, pos2, y):
+        if back_to_back(rec, recf, jr, pos_all, pos2, y, d, kappa_h):
             return WAIT
         if sheet_convex_edge(float(recf[jr + R_X]), float(recf[jr + R_Y]), float(recf[jr + R_Z]),
                              float(recf[jr + R_NX]), float(recf[jr + R_NY]), float(recf[jr + R_NZ]), y, pos2, kappa_h):
@@ -352,6 +370,7 @@ def hits_back(d, ex, z_edge, tau_h, kappa_h):
     """y turns its back (n_y . s > 0); x waits, d = (c_x - c_y) . n_y and
     ex = (c_y - c_x) . n_x. Does x hit y's back (gather nothing, leave)? Yes
     when x lies beyond tau behind y's plane, unless the voxel last added to
-    the list and y form a convex edge (z_edge), or x and y do (each just
-    behind the other's plane, within kappa)."""
-    return d < -tau_h and not z_edge and not (ex < 0.0 and d >= -kappa_h)
+    the list and y form a convex edge (z_edge), or x and y do (x just
+    behind y's plane, within kappa; y behind x's plane, or within tau in
+    front of it)."""
+    return d < -tau_h and not z_edge and not (ex < tau_h and d >= -kappa_h)
