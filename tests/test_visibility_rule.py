@@ -210,3 +210,25 @@ def test_inner_face_of_a_convex_sheet_is_passed_along_the_chain():
                dict(x=3.5, y=0.0, n=(1, 1, 0), sheet=True),        # ... and outer face
                dict(x=5.5, n=MINUS))
     assert seen(vox)[0] == 5
+
+
+def test_other_face_of_a_noisy_sheet_is_not_seen():
+    """A noisy two-sided surface: in the next cell a face of the sheet faces
+    the waiting face with a normal 45 degrees off opposite, within kappa
+    of each other's plane (its pieces went to another facing). It is the
+    surface's own other face: not seen."""
+    vox = line(dict(x=0.5, n=PLUS, sheet=True),
+               dict(x=1.4, y=0.9, n=(-0.7, 0.714, 0), sheet=True),
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 2
+
+
+def test_flat_junction_of_two_facings_does_not_block():
+    """Two facings of one noisy surface meet in a cell: the next voxel turns
+    its back to the ray, the waiting voxel lies behind its plane (within
+    kappa) and it lies a little (within tau) in front of the waiting
+    voxel's plane. A flat junction, not a wall: the ray goes on."""
+    vox = line(dict(x=0.5, n=(0.2, 1, 0)),
+               dict(x=1.3, y=0.38, n=(1, 0.3, 0)),
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 2
