@@ -294,19 +294,26 @@ def mark_crossed_cells(pieces: Pieces, key, piece_tri):
     return by_cell, runs
 
 
-def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs):
+def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs, two_sided):
     """Step 6: (order (m,) of the pieces, voxel of each piece in that order
     (m,) int64). Pieces of a (cell, facing) merge unless another surface of
     the cell separates them (side signatures), they are the two parts of a
     cut piece, or their planes lie over SHEET_GAP apart (sheets); but the
     pieces of one smooth patch and facing merge despite the gap (a curved
     surface's pieces lie on planes apart by its curvature), unless another
-    surface separates or cuts them."""
+    surface separates or cuts them. A face of a two-sided surface (two_sided
+    (m,) bool per piece) merges only with pieces of its own surface
+    (patches.py): lying on another surface's plane, it is that surface's
+    other side across its own sheet (a scan's closed bottom resting on a
+    floor: the floor's top and the bottom's inner face coincide)."""
     along = pieces.centroid[np.arange(len(axis)), axis] / pieces.area
     sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP,
                           pieces.surface)
-    # the two parts of a cut piece never merge: fold the part into the signature
-    group = np.unique(np.stack([sig, pieces.sign.astype(np.int64)], axis=1), axis=0, return_inverse=True)[1].ravel()
+    # the two parts of a cut piece never merge: fold the part into the signature; and a two-sided surface's
+    # face keeps to its own surface
+    own = np.where(two_sided, pieces.surface, -1)
+    group = np.unique(np.stack([sig, pieces.sign.astype(np.int64), own], axis=1), axis=0,
+                      return_inverse=True)[1].ravel()
     order = np.lexsort((along, group, facing, key))
     vox_of = merge_sheets(order, key, facing, group, along, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
     # join the voxels holding pieces of one (patch, facing, signature and part, cutting surface), then renumber
@@ -411,7 +418,8 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     key, facing, axis = pieces.keys_and_facings(grid.dims)
     by_cell, runs = mark_crossed_cells(pieces, key, sides_tri[pieces.side])
     checkpoint()
-    order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs)
+    two_sided = scene.double_sided[scene.material_ids[sides_tri[pieces.side]]]
+    order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs, two_sided)
     sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces)
     lookup = piece_lookup(pieces, key, order, vox_of, sides_tri, len(scene.triangles))
     starts = np.ones(len(vox_of), bool)
