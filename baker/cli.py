@@ -185,6 +185,7 @@ def cmd_render(args):
 def cmd_audit(args):
     from .config import threads
     from .scene import build_scene_bvh, pack
+    from .scene.inspect import geometry_report
     from .solve.audit import audit
     from .voxels import voxelize
     _check_common(args)
@@ -193,6 +194,7 @@ def cmd_audit(args):
         raise VoxgiError("--families, --samples and --radius must be at least 1")
     with threads(args.threads):
         scene = _load(args)
+        print(geometry_report(scene).summary())
         tree = build_scene_bvh(scene)
         surf = pack(scene)
         vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surf)

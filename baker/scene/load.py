@@ -15,12 +15,21 @@ from .model import Scene, Sky, make_material
 FORMATS = (".glb", ".gltf", ".obj", ".ply")
 
 
-def builtin_scenes() -> list:
-    """Names of the scenes shipped with the package (`scenes/*.glb`)."""
+BUILTIN_FORMATS = (".glb", ".obj")
+
+
+def _builtin_files() -> dict:
+    """name -> file name of the scenes shipped with the package (`scenes/*.glb`, `scenes/*.obj`)."""
     try:
-        return sorted(p.name[:-4] for p in files("scenes").iterdir() if p.name.endswith(".glb"))
+        return {os.path.splitext(p.name)[0]: p.name for p in files("scenes").iterdir()
+                if os.path.splitext(p.name)[1] in BUILTIN_FORMATS}
     except (ModuleNotFoundError, FileNotFoundError):
-        return []
+        return {}
+
+
+def builtin_scenes() -> list:
+    """Names of the scenes shipped with the package."""
+    return sorted(_builtin_files())
 
 
 def resolve(path) -> str:
@@ -29,8 +38,9 @@ def resolve(path) -> str:
     path = os.fspath(path)
     if os.path.exists(path) or os.path.splitext(path)[1].lower() in FORMATS or os.sep in path:
         return path
-    if path in builtin_scenes():
-        return str(files("scenes").joinpath(path + ".glb"))
+    builtin = _builtin_files()
+    if path in builtin:
+        return str(files("scenes").joinpath(builtin[path]))
     return path
 
 
