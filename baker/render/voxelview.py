@@ -1,5 +1,5 @@
 """The direct voxel view (the thesis's "direct voxel view"): primary rays
-from the camera (2 x 2 per pixel, box-filtered); each visible surface
+from the camera (4 x 4 per pixel, box-filtered); each visible surface
 point shows its voxel's outgoing radiance B / pi (the voxel of the hit cell whose facing matches the side
 seen, nearest sheet). A look at the solution itself, not a final image.
 """
@@ -14,7 +14,7 @@ from ..voxels.lookup import voxel_of_hit
 from .camera import primary_ray, render_bands
 
 
-SUBPIXELS = 2  # per axis: the pixel's value is the mean over SUBPIXELS^2 stratified points (a box filter, as the
+SUBPIXELS = 4  # per axis: the pixel's value is the mean over SUBPIXELS^2 stratified points (a box filter, as the
 #               path tracer's), so a pixel the edge of a surface crosses is not all background
 
 
