@@ -311,24 +311,39 @@ def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs, two_sided):
                           pieces.surface)
     # the two parts of a cut piece never merge: fold the part into the signature; and a two-sided surface's
     # face keeps to its own surface
-    own = np.where(two_sided, pieces.surface, -1)
-    group = np.unique(np.stack([sig, pieces.sign.astype(np.int64), own], axis=1), axis=0,
-                      return_inverse=True)[1].ravel()
+    group = _labels(sig, pieces.sign.astype(np.int64), np.where(two_sided, pieces.surface, -1))
     order = np.lexsort((along, group, facing, key))
     vox_of = merge_sheets(order, key, facing, group, along, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP)
     # join the voxels holding pieces of one (patch, facing, signature and part, cutting surface), then renumber
     # in order of first piece (the voxels stay in cell order) and make each voxel's pieces contiguous
-    keys = np.stack([pieces.patch, facing.astype(np.int64), group, pieces.plane_patch], axis=1)[order]
-    same = np.lexsort(keys.T[::-1])
-    ks = keys[same]
+    keys = [k[order] for k in (pieces.patch, facing.astype(np.int64), group, pieces.plane_patch)]
+    same = np.lexsort(keys[::-1])
     link = np.zeros(len(order), bool)
-    link[1:] = (ks[1:] == ks[:-1]).all(axis=1)
-    root = join_voxels(vox_of, same, link)
-    first = np.full(int(vox_of[-1]) + 1 if len(vox_of) else 0, len(order), np.int64)
-    np.minimum.at(first, root[vox_of], np.arange(len(order)))
-    new_of = np.unique(first[root[vox_of]], return_inverse=True)[1].ravel()
+    link[1:] = np.logical_and.reduce([k[same][1:] == k[same][:-1] for k in keys])
+    link[1:] &= vox_of[same][1:] != vox_of[same][:-1]  # only pairs in different voxels join anything
+    if not link.any():
+        return order, vox_of
+    root = join_voxels(vox_of, same, link)[vox_of]
+    _, first, inv = np.unique(root, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    new_of = rank[inv.ravel()]
     resort = np.argsort(new_of, kind="stable")
-    return order[resort], new_of[resort].astype(np.int64)
+    return order[resort], new_of[resort]
+
+
+def _labels(*columns):
+    """An int64 label per row of the given int64 columns, equal exactly when
+    the rows are equal."""
+    order = np.lexsort(columns[::-1])
+    change = np.zeros(len(order), bool)
+    for c in columns:
+        cs = c[order]
+        change[1:] |= cs[1:] != cs[:-1]
+    change[:1] = True
+    label = np.empty(len(order), np.int64)
+    label[order] = np.cumsum(change) - 1
+    return label
 
 
 def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corners, grid: Grid, surfaces):
