@@ -67,7 +67,7 @@ def test_public_cornell_box_obj_with_duplicate_faces():
     'bottom' (dropped by the loader: one surface counts once). Read
     one-sided: the two-sided reading (the OBJ default) makes the lamp emit
     upwards into the 1 cm gap under the ceiling, light the voxels lose
-    (about 5% of the room's; docs/design.md)."""
+    (about 6% of the room's; docs/design.md)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = load_scene(os.path.join(HERE, "scenes", "cornell_box_original.obj"), one_sided=True)
