@@ -11,18 +11,25 @@ y's plane (lengths in cells):
   behind y's plane moves away from it and keeps waiting. Extra tests, each
   for a case the tau rule alone gets wrong:
   * a face of a two-sided sheet is seen from in front only (d >= 0), and
-    never by its sheet's other face (`back_to_back`): the two faces lie at
-    one centroid;
+    never by its own surface's other face nearby (`back_to_back`: within
+    kappa, normals within 60 degrees of opposite, a curved or noisy
+    sheet's faces a cell apart), nor, on a convex sheet, the inner face
+    the line meets just behind the waiting face's plane
+    (`sheet_convex_edge`, with x or the voxel last added);
   * another surface standing between x and y (`hidden`): one crossing y's
     cell (`separated`, a wall standing on a floor), one that cut x's or
     y's pieces (`cut_between`, a floor running under a wall), or y's own
-    plane cutting x's cell (`cut_by`);
+    plane cutting x's cell (`cut_by`); it hides y when x's ray heads for
+    it (HIDES), and x keeps waiting when the ray moves away from it
+    (AWAY: y is on the line only because the line is a cell thick);
   * a surface the line ran along after x joined (`across`, a line a cell
     thick passing a wall inside the wall's cells).
 - `hits_back`: y turns its back (n_y . s > 0). x with d < -tau hits that
   back: it gathers 0 and leaves, unless x and y, or the voxel z last added
-  to the list and y, form a convex edge (`convex_edge`: each just behind
-  the other's plane, within kappa). Then y joins the list.
+  to the list and y, form a convex edge (`convex_edge`: the waiting one
+  just behind y's plane, within kappa, and y behind its plane or within
+  tau in front of it: a flat junction of two facings of a noisy surface).
+  Then y joins the list.
 - a voxel parallel to the line (n_y . s = 0) neither sends nor receives;
   `passes_parallel` notes it in the records of the voxels it separates.
 - `order_cell`: voxels of one cell in order along the ray; on a tie a +1
