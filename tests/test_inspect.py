@@ -1,5 +1,6 @@
 """The geometry report of `voxbake audit` (baker/scene/inspect.py):
-duplicates dropped, coplanar overlaps, closed two-sided shells."""
+duplicates dropped, coplanar overlaps, closed two-sided shells, two-sided
+lamps."""
 import numpy as np
 import pytest
 
@@ -51,5 +52,8 @@ def test_dropped_duplicates_are_counted():
     import os
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     from baker import load_scene
-    report = geometry_report(load_scene(os.path.join(here, "scenes", "cornell_box_original.obj")))
+    path = os.path.join(here, "scenes", "cornell_box_original.obj")
+    report = geometry_report(load_scene(path))
     assert report.duplicates_dropped == 4 and "4 duplicate triangles dropped" in report.summary()
+    assert report.two_sided_emitters == 2 and "both faces emit" in report.summary()  # the lamp, read two-sided
+    assert geometry_report(load_scene(path, one_sided=True)).two_sided_emitters == 0

@@ -6,6 +6,7 @@ audit (`voxbake audit`) to report:
   winding: one surface counts once);
 - coplanar triangles that overlap in part, facing the same way (each
   counts in the voxels' area: their overlap is lit twice);
+- two-sided emitters (both faces emit: a lamp read from OBJ);
 - closed (or nearly closed) two-sided shells (a scanned model read from
   PLY or OBJ): both
   faces are solved, the inner ones dark; where the shell is thinner than
@@ -31,6 +32,7 @@ class GeometryReport:
     area: float                   # the scene's triangle area, scene units^2
     two_sided_shells: int         # closed (or nearly) components of two-sided triangles
     two_sided_shell_triangles: int
+    two_sided_emitters: int = 0   # emitting triangles whose back emits too
 
     def summary(self) -> str:
         lines = [f"geometry: {self.triangles} triangles, area {self.area:.4g}"]
@@ -45,8 +47,13 @@ class GeometryReport:
                          f"({self.two_sided_shell_triangles} "
                          f"triangles): their inside faces are solved too; if the model's normals point out, "
                          f"--one-sided solves only the outside (half the voxels)")
+        if self.two_sided_emitters:
+            lines.append(f"  {self.two_sided_emitters} emitting triangles are two-sided: both faces emit (an OBJ lamp "
+                         f"emits up into the ceiling too); within a cell of another surface that light is trapped in "
+                         f"the voxels, while it leaks out of the gap in reality: make the lamp one-sided "
+                         f"(--one-sided, or a glTF material without doubleSided) if only its front should emit")
         if len(lines) == 1:
-            lines.append("  no duplicates, overlapping coplanar faces or closed two-sided shells")
+            lines.append("  no duplicates, overlapping coplanar faces, closed two-sided shells or two-sided lamps")
         return "\n".join(lines)
 
 
@@ -212,5 +219,7 @@ def geometry_report(scene) -> GeometryReport:
     corners = scene.triangle_corners()
     pairs, overlap = coplanar_overlaps(corners)
     shells, members = two_sided_shells(scene)
+    emits = scene.emission.max(axis=1)[scene.material_ids] > 0
+    both = int((emits & scene.double_sided[scene.material_ids]).sum())
     return GeometryReport(len(scene.triangles), _count_dropped(scene), int(pairs), float(overlap),
-                          float(scene.triangle_areas().sum()), shells, members)
+                          float(scene.triangle_areas().sum()), shells, members, both)
