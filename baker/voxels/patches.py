@@ -9,10 +9,12 @@ into a dozen slivers of voxels (the Stanford bunny at 64 cells: 4.4 voxels
 per cell and facing, most of them too small to catch a photon, each
 hiding the others from the propagation). Pieces of one cell whose
 triangles share an edge, on the same side, with normals within
-SMOOTH_COS of each other, are one patch (transitively): a patch never cuts,
-separates or splits into sheets itself; surfaces of other patches (a wall
-standing on a floor, a box on a table: creases sharper than SMOOTH_COS, or
-no shared edge) still do.
+SMOOTH_COS of each other, are one patch (transitively). With the pieces
+of its triangles' other sides (a two-sided surface's other face) it is
+one *surface*: a surface never cuts, separates or splits into sheets
+itself; other surfaces (a wall standing on a floor, a box on a table:
+creases sharper than SMOOTH_COS, or no shared edge) still do. The pieces
+of a patch of one facing always merge into one voxel.
 """
 import numpy as np
 from numba import njit
