@@ -24,45 +24,24 @@ import os
 import time
 import warnings
 
-import numpy as np
-
 from common import ROOT, emit
 from baker import load_scene, render, solve, solver_config
 from baker.errors import VoxgiWarning
+from baker.render.compare import compare
 from baker.scene import build_scene_bvh, pack
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
-
-
-def compare(scene, res, spp, preset, block=8):
+def measure(scene, res, spp, preset):
     bvh, surf = build_scene_bvh(scene), pack(scene)
     cam = scene.camera(None, bvh)
     t = time.perf_counter()
-    pt = render(scene, cam, res, res, "pathtrace", spp=spp, seed=7, bvh=bvh, surfaces=surf) @ LUMINANCE
+    pt = render(scene, cam, res, res, "pathtrace", spp=spp, seed=7, bvh=bvh, surfaces=surf)
     t_pt = time.perf_counter() - t
     t = time.perf_counter()
     sol = solve(scene, solver_config(preset), bvh=bvh, surfaces=surf)
     t_solve = time.perf_counter() - t
-    vx = render(scene, cam, res, res, "voxels", solution=sol, bvh=bvh, surfaces=surf) @ LUMINANCE
-    lamp = pt > 0.5 * pt.max()
-    for _ in range(2):
-        grow = lamp.copy()
-        grow[1:] |= lamp[:-1]
-        grow[:-1] |= lamp[1:]
-        grow[:, 1:] |= lamp[:, :-1]
-        grow[:, :-1] |= lamp[:, 1:]
-        lamp = grow
-    lit = ~lamp & (pt > 0)
-    ratios = []
-    for y in range(0, res, block):
-        for x in range(0, res, block):
-            m = lit[y:y + block, x:x + block]
-            if m.sum() >= block * block // 2:
-                ratios.append(vx[y:y + block, x:x + block][m].mean() / pt[y:y + block, x:x + block][m].mean())
-    ratios = np.array(ratios)
-    black = int(((vx == 0) & lit & (pt > 0.25 * np.median(pt[lit]))).sum())
-    return [len(sol.voxels), f"{vx[lit].mean() / pt[lit].mean():.3f}", f"{ratios.min():.2f}-{ratios.max():.2f}",
-            f"{100 * (np.abs(ratios - 1) <= 0.05).mean():.0f}%", black, f"{t_solve:.1f}", f"{t_pt:.0f}"]
+    c = compare(render(scene, cam, res, res, "voxels", solution=sol, bvh=bvh, surfaces=surf), pt)
+    return [len(sol.voxels), f"{c.mean:.3f}", f"{c.blocks.min():.2f}-{c.blocks.max():.2f}",
+            f"{100 * c.within(0.05):.0f}%", c.black, f"{t_solve:.1f}", f"{t_pt:.0f}"]
 
 
 def main():
@@ -83,7 +62,7 @@ def main():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", VoxgiWarning)
             scene = load_scene(path, one_sided=one)
-        rows.append([name, *compare(scene, args.res, args.spp, args.preset)])
+        rows.append([name, *measure(scene, args.res, args.spp, args.preset)])
     emit(args, f"Voxel view ({args.preset}) against the path tracer ({args.spp} spp, {args.res}x{args.res})", rows,
          ["scene", "voxels", "mean ratio", "8x8 blocks", "blocks within 5%", "black lit pixels", "solve s",
           "path tracer s"])

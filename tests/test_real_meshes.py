@@ -12,42 +12,22 @@ these settings is about 1% per block (measured between seeds)."""
 import os
 import warnings
 
-import numpy as np
 import pytest
 
 from baker import load_scene, render, solve, solver_config
+from baker.render.compare import compare
 from baker.scene import build_scene_bvh, pack
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
-def compare(scene, spp, res=64, block=8):
-    """(mean ratio, worst block |ratio - 1|, black lit pixels) of the voxel
-    view at the default preset against the path tracer."""
+def compare_at_default(scene, spp, res=64):
+    """The voxel view at the default preset against the path tracer."""
     bvh, surf = build_scene_bvh(scene), pack(scene)
     cam = scene.camera(None, bvh)
-    pt = render(scene, cam, res, res, "pathtrace", spp=spp, seed=1, bvh=bvh, surfaces=surf) @ LUMINANCE
+    pt = render(scene, cam, res, res, "pathtrace", spp=spp, seed=1, bvh=bvh, surfaces=surf)
     sol = solve(scene, solver_config("default"), bvh=bvh, surfaces=surf)
-    vx = render(scene, cam, res, res, "voxels", solution=sol, bvh=bvh, surfaces=surf) @ LUMINANCE
-    lamp = pt > 0.5 * pt.max()
-    for _ in range(2):
-        grow = lamp.copy()
-        grow[1:] |= lamp[:-1]
-        grow[:-1] |= lamp[1:]
-        grow[:, 1:] |= lamp[:, :-1]
-        grow[:, :-1] |= lamp[:, 1:]
-        lamp = grow
-    lit = ~lamp & (pt > 0)
-    worst = 0.0
-    for y in range(0, res, block):
-        for x in range(0, res, block):
-            m = lit[y:y + block, x:x + block]
-            if m.sum() >= block * block // 2:
-                r = vx[y:y + block, x:x + block][m].mean() / pt[y:y + block, x:x + block][m].mean()
-                worst = max(worst, abs(r - 1))
-    black = int(((vx == 0) & lit & (pt > 0.25 * np.median(pt[lit]))).sum())
-    return vx[lit].mean() / pt[lit].mean(), worst, black
+    return compare(render(scene, cam, res, res, "voxels", solution=sol, bvh=bvh, surfaces=surf), pt)
 
 
 @pytest.mark.slow
@@ -55,10 +35,10 @@ def test_scanned_shell_in_a_room():
     """A two-sided noisy shell of 17,702 triangles (several per cell) resting
     on the floor: before the smooth patches and the own-back rules its
     voxel view was 0.80-0.90 of the path tracer with near-black patches."""
-    mean, worst, black = compare(load_scene(os.path.join(HERE, "scenes", "scan_room.glb")), spp=512)
-    assert abs(mean - 1) < 0.02
-    assert worst < 0.10
-    assert black == 0
+    c = compare_at_default(load_scene(os.path.join(HERE, "scenes", "scan_room.glb")), spp=512)
+    assert abs(c.mean - 1) < 0.02
+    assert c.worst < 0.10
+    assert c.black == 0
 
 
 @pytest.mark.slow
@@ -72,7 +52,23 @@ def test_public_cornell_box_obj_with_duplicate_faces():
         warnings.simplefilter("always")
         scene = load_scene(os.path.join(HERE, "scenes", "cornell_box_original.obj"), one_sided=True)
     assert any("dropped 4 duplicate triangles" in str(w.message) for w in caught)
-    mean, worst, black = compare(scene, spp=1024)
-    assert abs(mean - 1) < 0.02
-    assert worst < 0.10
-    assert black == 0
+    c = compare_at_default(scene, spp=1024)
+    assert abs(c.mean - 1) < 0.02
+    assert c.worst < 0.10
+    assert c.black == 0
+
+
+def test_comparison_leaves_the_lamp_out_and_counts_black_lit_pixels():
+    import numpy as np
+    ref = np.full((16, 16, 3), 0.5)
+    ref[0:2, 6:10] = 100.0                  # the lamp: left out with two rings of pixels around it
+    img = ref.copy()
+    img[0:2, 6:10] = 0.0                    # wrong only on the lamp ...
+    img[2, 6] = img[0, 4] = 0.0             # ... and pixels of its rings (one and two pixels out)
+    img[10:16, 0:8] *= 0.9                  # a darker region in the bottom-left block
+    img[15, 15] = 0.0                       # one lit pixel black
+    c = compare(img, ref, block=8)
+    assert c.black == 1
+    assert sorted(c.blocks) == pytest.approx([(2 + 6 * 0.9) / 8, 63 / 64, 1.0, 1.0])  # 6 rows at 0.9; one black
+    assert c.worst == pytest.approx(1 - c.blocks.min())
+    assert 0.9 < c.mean < 1.0
