@@ -175,8 +175,8 @@ def read_gltf(path):
         for what in ignored_terms(m):
             ignored.setdefault(what, []).append(name)
     default_index = None
-    verts, tris, mids, norms, uvs = [], [], [], [], []
-    has_normals = has_uvs = True
+    verts, tris, mids, norms, uvs, uvs1 = [], [], [], [], [], []
+    has_normals = has_uvs = has_uvs1 = True
     offset = 0
     cameras, lights = [], []
     light_defs = ((doc.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
@@ -238,6 +238,10 @@ def read_gltf(path):
             else:
                 has_uvs = False
                 uvs.append(np.zeros((len(pos), 2), np.float32))
+            if prim.attributes.TEXCOORD_1 is not None:
+                uvs1.append(_accessor(doc, bufs, prim.attributes.TEXCOORD_1, path).astype(np.float32))
+            else:
+                has_uvs1 = False
             if prim.material is None:
                 if default_index is None:
                     default_index = len(materials)
@@ -257,4 +261,6 @@ def read_gltf(path):
     return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris),
                 material_ids=np.concatenate(mids),
                 materials=materials, normals=np.concatenate(norms) if has_normals and norms else None,
-                uvs=np.concatenate(uvs) if has_uvs and uvs else None, cameras=cameras, lights=lights)
+                uvs=np.concatenate(uvs) if has_uvs and uvs else None, cameras=cameras, lights=lights,
+                uvs1=np.concatenate(uvs1) if has_uvs1 and uvs1 else None,
+                material_extensions=[dict(m.extensions or {}) for m in doc.materials or []])

@@ -78,9 +78,29 @@ class GltfBuilder:
         return idx
 
     # -- public ------------------------------------------------------------
-    def material(self, name, albedo, emission=(0.0, 0.0, 0.0), double_sided=False) -> int:
+    def buffer_view(self, data: bytes) -> int:
+        """Raw bytes in the binary chunk (for an extension's data)."""
+        return self._view(bytes(data))
+
+    def image(self, data: bytes, mime="image/png") -> int:
+        self.doc.images.append(g.Image(bufferView=self._view(bytes(data)), mimeType=mime))
+        return len(self.doc.images) - 1
+
+    def texture(self, image: int, linear_filter=True, clamp=True) -> int:
+        """A texture of `image` with its own sampler (bilinear, no mipmaps,
+        clamped to the edge: what a lightmap page wants)."""
+        f = g.LINEAR if linear_filter else g.NEAREST
+        w = g.CLAMP_TO_EDGE if clamp else g.REPEAT
+        self.doc.samplers.append(g.Sampler(magFilter=f, minFilter=f, wrapS=w, wrapT=w))
+        self.doc.textures.append(g.Texture(source=image, sampler=len(self.doc.samplers) - 1))
+        return len(self.doc.textures) - 1
+
+    def material(self, name, albedo, emission=(0.0, 0.0, 0.0), double_sided=False, texture=None,
+                 extensions=None) -> int:
         """Lambertian material; `emission` is radiance (W m^-2 sr^-1), split
-        into emissiveFactor (max 1) times KHR_materials_emissive_strength."""
+        into emissiveFactor (max 1) times KHR_materials_emissive_strength;
+        `texture` a base colour texture index (TEXCOORD_0); `extensions`
+        more material extensions {name: data} (each listed as used)."""
         albedo = [float(a) for a in albedo]
         emission = np.asarray(emission, float)
         strength = float(emission.max())
@@ -89,11 +109,16 @@ class GltfBuilder:
             pbrMetallicRoughness=g.PbrMetallicRoughness(
                 baseColorFactor=albedo[:3] + [1.0], metallicFactor=0.0, roughnessFactor=1.0),
             doubleSided=bool(double_sided))
+        if texture is not None:
+            mat.pbrMetallicRoughness.baseColorTexture = g.TextureInfo(index=int(texture))
+        ext = dict(extensions or {})
         if strength > 0:
             mat.emissiveFactor = (emission / strength).tolist()
             if strength != 1.0:
-                mat.extensions = {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}
-                self.extensions_used.add("KHR_materials_emissive_strength")
+                ext["KHR_materials_emissive_strength"] = {"emissiveStrength": strength}
+        if ext:
+            mat.extensions = ext
+            self.extensions_used.update(ext)
         self.doc.materials.append(mat)
         return len(self.doc.materials) - 1
 
@@ -108,6 +133,28 @@ class GltfBuilder:
         idx = self._accessor(np.asarray(triangles, np.uint32).reshape(-1), "SCALAR", g.ELEMENT_ARRAY_BUFFER)
         self.doc.meshes.append(g.Mesh(name=name, primitives=[
             g.Primitive(attributes=attrs, indices=idx, material=material)]))
+        return self._add_node(g.Node(name=name, mesh=len(self.doc.meshes) - 1))
+
+    def primitives(self, name, parts) -> int:
+        """One mesh of several primitives; each part a dict with positions
+        (n, 3), material, and optional normals (n, 3), uv0, uv1 (n, 2),
+        triangles (m, 3) (default: consecutive corners)."""
+        prims = []
+        for part in parts:
+            pos = np.asarray(part["positions"], np.float32).reshape(-1, 3)
+            attrs = g.Attributes(POSITION=self._accessor(pos, "VEC3", g.ARRAY_BUFFER, True))
+            if part.get("normals") is not None:
+                attrs.NORMAL = self._accessor(np.asarray(part["normals"], np.float32).reshape(-1, 3), "VEC3",
+                                              g.ARRAY_BUFFER)
+            for key, attr in (("uv0", "TEXCOORD_0"), ("uv1", "TEXCOORD_1")):
+                if part.get(key) is not None:
+                    setattr(attrs, attr, self._accessor(np.asarray(part[key], np.float32).reshape(-1, 2), "VEC2",
+                                                        g.ARRAY_BUFFER))
+            tris = part.get("triangles")
+            tris = np.arange(len(pos), dtype=np.uint32) if tris is None else np.asarray(tris, np.uint32)
+            idx = self._accessor(tris.reshape(-1), "SCALAR", g.ELEMENT_ARRAY_BUFFER)
+            prims.append(g.Primitive(attributes=attrs, indices=idx, material=int(part["material"])))
+        self.doc.meshes.append(g.Mesh(name=name, primitives=prims))
         return self._add_node(g.Node(name=name, mesh=len(self.doc.meshes) - 1))
 
     def camera(self, name, position, forward, up=(0, 1, 0), yfov_deg=45.0, aspect=1.0) -> int:
@@ -133,13 +180,26 @@ class GltfBuilder:
                       extensions={"KHR_lights_punctual": {"light": len(self.lights) - 1}})
         return self._add_node(node)
 
-    def save(self, path):
-        """Writes the .glb atomically (temporary file in the same folder, then rename)."""
-        if self.lights:
-            self.doc.extensions = {"KHR_lights_punctual": {"lights": self.lights}}
+    def save(self, path, extensions=None, extras=None, checksum_key=None):
+        """Writes the .glb atomically (temporary file in the same folder, then
+        rename). `extensions`: more root extensions {name: data};
+        `extras`: the root's extras; `checksum_key`: if given, the SHA-256
+        of the binary chunk goes in extras[checksum_key]["binSha256"]."""
+        import hashlib
+        ext = {"KHR_lights_punctual": {"lights": self.lights}} if self.lights else {}
+        ext.update(extensions or {})
+        if ext:
+            self.doc.extensions = ext
+            self.extensions_used.update(ext)
         self.doc.extensionsUsed = sorted(self.extensions_used)
         while len(self.blob) % 4:
             self.blob.append(0)
+        if extras is not None or checksum_key:
+            extras = dict(extras or {})
+            if checksum_key:
+                extras[checksum_key] = dict(extras.get(checksum_key, {}),
+                                            binSha256=hashlib.sha256(bytes(self.blob)).hexdigest())
+            self.doc.extras = extras
         self.doc.buffers = [g.Buffer(byteLength=len(self.blob))]
         self.doc.set_binary_blob(bytes(self.blob))
         atomic_write(path, self.doc.save_binary)

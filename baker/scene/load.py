@@ -81,6 +81,8 @@ def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None) -> Scen
         raise SceneError(f"cannot read ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})",
                          path) from e
     parts["lights"] = tuple(parts.get("lights", ())) + tuple(lights)
+    parts.pop("uvs1", None)  # a bake file's lightmap UVs and material extensions: the bake reader's business
+    parts.pop("material_extensions", None)
     return _validate(path, sky=sky, **parts)
 
 

@@ -1,0 +1,93 @@
+"""The bake seen by a camera, on the CPU: what a viewer shows, computed
+from the bake alone (docs/design.md section 9):
+
+    L(p) = albedo(p) / pi * H(p) + L_e(p),
+
+H bilinearly interpolated from the lightmap page at the point's
+TEXCOORD_1, 4 x 4 box-filtered samples per pixel (as the voxel view and
+the path tracer). The back of a triangle is black. The reference the
+viewer's snapshots and the three.js screenshot are checked against.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.traverse import closest_hit, hit_normal
+from ..render.camera import camera_array, primary_ray, render_bands
+from ..render.voxelview import SUBPIXELS
+from ..scene.surfaces import albedo_at
+
+
+@njit(cache=True, inline="always")
+def bilinear(pages, p, u, v):
+    """Bilinear lookup of page p at (u, v) (texel centres at (i + 0.5) /
+    size; clamped to the edge, as the file's sampler)."""
+    n = pages.shape[1]
+    x = u * n - 0.5
+    y = v * n - 0.5
+    x0 = int(math.floor(x))
+    y0 = int(math.floor(y))
+    fx, fy = x - x0, y - y0
+    r0 = r1 = r2 = 0.0
+    for dy in range(2):
+        for dx in range(2):
+            w = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
+            xi = min(max(x0 + dx, 0), n - 1)
+            yi = min(max(y0 + dy, 0), n - 1)
+            r0 += w * pages[p, yi, xi, 0]
+            r1 += w * pages[p, yi, xi, 1]
+            r2 += w * pages[p, yi, xi, 2]
+    return r0, r1, r2
+
+
+@njit(cache=True, parallel=True)
+def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
+    n = (row1 - row0) * width
+    w = 1.0 / (SUBPIXELS * SUBPIXELS)
+    inv_pi = 1.0 / math.pi
+    for k in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
+        y = row0 + k // width
+        x = k % width
+        r0 = r1 = r2 = 0.0
+        for sub in range(SUBPIXELS * SUBPIXELS):
+            fx = (sub % SUBPIXELS + 0.5) / SUBPIXELS
+            fy = (sub // SUBPIXELS + 0.5) / SUBPIXELS
+            ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
+            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+            if j < 0:
+                continue
+            nx, ny, nz = hit_normal(bvh, j)
+            if nx * dx + ny * dy + nz * dz > 0.0:
+                continue
+            tri = bvh.tri_index[j]
+            b0 = 1.0 - u - v
+            lu = b0 * uv1[tri, 0, 0] + u * uv1[tri, 1, 0] + v * uv1[tri, 2, 0]
+            lv = b0 * uv1[tri, 0, 1] + u * uv1[tri, 1, 1] + v * uv1[tri, 2, 1]
+            h0, h1, h2 = bilinear(pages, page[tri], lu, lv)
+            a0, a1, a2 = albedo_at(surf, tri, u, v)
+            m = surf.tri_material[tri]
+            r0 += a0 * inv_pi * h0 + surf.emission[m, 0]
+            r1 += a1 * inv_pi * h1 + surf.emission[m, 1]
+            r2 += a2 * inv_pi * h2 + surf.emission[m, 2]
+        out[y, x, 0] = r0 * w
+        out[y, x, 1] = r1 * w
+        out[y, x, 2] = r2 * w
+
+
+def render_bake(bake, camera=None, width=256, height=256, progress=None, bvh=None):
+    """Linear radiance image (height, width, 3) float32 of the bake seen by
+    `camera` (a Camera, a name, an index or None: the bake's first)."""
+    from ..scene import build_scene_bvh, pack
+    from ..scene.model import Camera
+    bvh = bvh or build_scene_bvh(bake.scene)
+    surf = pack(bake.scene)
+    cam = camera if isinstance(camera, Camera) else bake.scene.camera(camera, bvh)
+    return render_bands(_rows, width, height,
+                        (bvh.arrays, surf.arrays, np.ascontiguousarray(bake.uv1, np.float64), bake.page,
+                         np.ascontiguousarray(bake.pages, np.float32), camera_array(cam, width, height),
+                         int(width), int(height)), progress)

@@ -1,0 +1,204 @@
+"""Texels of the charts: where each one samples the scene, which ones lie
+inside geometry, and how empty texels are filled (docs/design.md section 8).
+
+- Sample points: texel (i, j) of a chart has its centre at (i + 0.5,
+  j + 0.5) in the chart's texel units; its sample point is the point of the
+  triangle nearest to that centre (the centre itself when it lies inside),
+  nudged a hair towards the triangle's centroid so that it is never exactly
+  on an edge. A texel is *covered* when its centre lies within COVER
+  texels of the triangle: those are the texels a bilinear lookup anywhere
+  on the triangle reads (a lookup at x reads the centres within Chebyshev
+  distance 1 of x, hence within Euclidean distance sqrt 2 < COVER).
+- Inside geometry: a covered texel whose point lies where the surface is
+  hidden inside a closed object (a floor under a box, a wall's end inside
+  the next wall) sees the back faces of the object around it. PROBES short
+  rays over the hemisphere tell it; a texel with at least PROBE_BACK of
+  them on back faces is *invalid*: its own value (the dark inside) would
+  bleed into the visible texels beside it through bilinear filtering, so
+  it is refilled from its valid neighbours, as production bakers do.
+- Fill: empty texels take the mean of their filled 4-neighbours, layer by
+  layer: exactly the texels within city-block distance < FILL_DISTANCE of
+  a filled texel are filled.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.rng import mix64
+from ..kernels.sampling import frame
+from ..kernels.traverse import closest_hit, hit_normal
+
+COVER = 1.5           # texels: centres this near the triangle are sampled
+NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
+FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
+PROBES = 16           # rays per texel for the inside-geometry test
+PROBE_BACK = 0.25     # fraction of probes on back faces that marks a texel inside geometry
+PROBE_REACH = 2.0     # probe length in cells (or texels, the larger)
+
+
+@njit(cache=True, inline="always")
+def closest_on_triangle(px, py, ax, ay, bx, by, cx, cy):
+    """Barycentrics (wa, wb, wc) of the point of 2D triangle abc nearest to
+    p (Ericson, Real-Time Collision Detection 5.1.5)."""
+    abx, aby, acx, acy = bx - ax, by - ay, cx - ax, cy - ay
+    apx, apy = px - ax, py - ay
+    d1 = abx * apx + aby * apy
+    d2 = acx * apx + acy * apy
+    if d1 <= 0.0 and d2 <= 0.0:
+        return 1.0, 0.0, 0.0
+    bpx, bpy = px - bx, py - by
+    d3 = abx * bpx + aby * bpy
+    d4 = acx * bpx + acy * bpy
+    if d3 >= 0.0 and d4 <= d3:
+        return 0.0, 1.0, 0.0
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return 1.0 - v, v, 0.0
+    cpx, cpy = px - cx, py - cy
+    d5 = abx * cpx + aby * cpy
+    d6 = acx * cpx + acy * cpy
+    if d6 >= 0.0 and d5 <= d6:
+        return 0.0, 0.0, 1.0
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return 1.0 - w, 0.0, w
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return 0.0, 1.0 - w, w
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return 1.0 - v - w, v, w
+
+
+@njit(cache=True, parallel=True)
+def texel_points(corners, chart_tri, corners2d, size, offsets):
+    """Sample point (N, 3) float64 and covered flag (N,) bool of every texel
+    of every chart (flat, chart c at offsets[c] .., row-major (row j,
+    column i))."""
+    total = offsets[-1]
+    point = np.zeros((total, 3))
+    covered = np.zeros(total, np.bool_)
+    third = 1.0 / 3.0
+    for c in prange(len(size)):
+        t = chart_tri[c]
+        s = size[c]
+        q = corners2d[c]
+        for j in range(s):
+            for i in range(s):
+                px, py = i + 0.5, j + 0.5
+                wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
+                wa = wa + (third - wa) * NUDGE
+                wb = wb + (third - wb) * NUDGE
+                wc = 1.0 - wa - wb
+                dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
+                dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
+                k = offsets[c] + j * s + i
+                covered[k] = dx * dx + dy * dy <= COVER * COVER
+                for a in range(3):
+                    point[k, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
+    return point, covered
+
+
+@njit(cache=True)
+def side_normal(corners, t, back):
+    """Unit normal of triangle t's side (its winding normal, negated for the back)."""
+    ax, ay, az = corners[t, 1, 0] - corners[t, 0, 0], corners[t, 1, 1] - corners[t, 0, 1], \
+        corners[t, 1, 2] - corners[t, 0, 2]
+    bx, by, bz = corners[t, 2, 0] - corners[t, 0, 0], corners[t, 2, 1] - corners[t, 0, 1], \
+        corners[t, 2, 2] - corners[t, 0, 2]
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    s = -1.0 / ln if back else 1.0 / ln
+    return nx * s, ny * s, nz * s
+
+
+@njit(cache=True, parallel=True)
+def inside_geometry(bvh, double, mat_of, corners, chart_tri, chart_back, offsets, point, covered, offset, reach,
+                    seed):
+    """(N,) bool: covered texels whose point is hidden inside geometry (at
+    least PROBE_BACK of PROBES cosine-distributed rays of length `reach`,
+    started `offset` off the surface, hit the back of a one-sided
+    triangle). Stratified directions, rotated per texel by a hash."""
+    total = offsets[-1]
+    out = np.zeros(total, np.bool_)
+    side = int(math.sqrt(PROBES))
+    for c in prange(len(chart_tri)):
+        stack = np.empty(STACK_SIZE, np.int32)
+        t = chart_tri[c]
+        nx, ny, nz = side_normal(corners, t, chart_back[c])
+        tx, bx = frame(nx, ny, nz)
+        for k in range(offsets[c], offsets[c + 1]):
+            if not covered[k]:
+                continue
+            h = mix64(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(k))
+            r1 = float(h >> np.uint64(40)) / 16777216.0
+            r2 = float((h >> np.uint64(16)) & np.uint64(0xFFFFFF)) / 16777216.0
+            ox = point[k, 0] + offset * nx
+            oy = point[k, 1] + offset * ny
+            oz = point[k, 2] + offset * nz
+            backs = 0
+            for p in range(side * side):
+                u1 = ((p // side) + r1) / side
+                u1 = u1 - 1.0 if u1 >= 1.0 else u1
+                u2 = ((p % side) + r2) / side
+                u2 = u2 - 1.0 if u2 >= 1.0 else u2
+                rr = math.sqrt(u1)
+                phi = 2.0 * math.pi * u2
+                x, y, z = rr * math.cos(phi), rr * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
+                dx = x * tx[0] + y * bx[0] + z * nx
+                dy = x * tx[1] + y * bx[1] + z * ny
+                dz = x * tx[2] + y * bx[2] + z * nz
+                tt, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, reach)
+                if j >= 0:
+                    hx, hy, hz = hit_normal(bvh, j)
+                    if hx * dx + hy * dy + hz * dz > 0.0 and not double[mat_of[bvh.tri_index[j]]]:
+                        backs += 1
+            out[k] = backs >= PROBE_BACK * side * side
+    return out
+
+
+@njit(cache=True, parallel=True)
+def fill(values, filled, offsets, size):
+    """Fills, in place, the empty texels within city-block distance <
+    FILL_DISTANCE of a filled one: layer d takes the mean of its filled
+    4-neighbours of layers < d. values (N, 3) float64, filled (N,) bool
+    (updated)."""
+    for c in prange(len(size)):
+        s = size[c]
+        o = offsets[c]
+        for d in range(1, FILL_DISTANCE):
+            new = np.zeros(s * s, np.bool_)
+            for j in range(s):
+                for i in range(s):
+                    k = o + j * s + i
+                    if filled[k]:
+                        continue
+                    a0 = a1 = a2 = 0.0
+                    m = 0
+                    for e in range(4):
+                        ii = i + (1 if e == 0 else (-1 if e == 1 else 0))
+                        jj = j + (1 if e == 2 else (-1 if e == 3 else 0))
+                        if ii < 0 or jj < 0 or ii >= s or jj >= s:
+                            continue
+                        kk = o + jj * s + ii
+                        if filled[kk]:
+                            a0 += values[kk, 0]
+                            a1 += values[kk, 1]
+                            a2 += values[kk, 2]
+                            m += 1
+                    if m:
+                        values[k, 0] = a0 / m
+                        values[k, 1] = a1 / m
+                        values[k, 2] = a2 / m
+                        new[j * s + i] = True
+            for q in range(s * s):
+                if new[q]:
+                    filled[o + q] = True
