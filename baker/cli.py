@@ -21,6 +21,7 @@ EPILOG = """examples:
   voxbake info cornell_box
   voxbake render cornell_box --method pathtrace --spp 256 -o cornell.exr
   voxbake render cornell_box --method voxels --preset preview -o voxels.png --stats s.json
+  voxbake bake cornell_box -o cornell.glb --preset preview
   voxbake render bunny.ply --sky 1,1,1 --sun 30,45,3 --look-from 0,0.2,0.5 --look-at 0,0.1,0 -o bunny.png
 
 Scenes: a .glb/.gltf/.obj/.ply file, or a built-in scene by name (`voxbake scenes`).
@@ -151,7 +152,12 @@ def cmd_render(args):
     stats = Stats("render " + args.method)
     with threads(args.threads):
         with stats.stage("load"):
-            scene = _load(args)
+            if args.method == "lightmap":
+                from .bake import read_bake
+                bake = read_bake(args.scene)
+                scene = bake.scene
+            else:
+                scene = _load(args)
         with stats.stage("bvh"):
             tree = build_scene_bvh(scene)
             surf = pack(scene)
@@ -159,7 +165,11 @@ def cmd_render(args):
         cam = camera_array(camera, args.width, args.height)
         stats.count(triangles=len(scene.triangles), bvh_nodes=tree.node_count, width=args.width,
                     height=args.height, camera=camera.name)
-        if args.method == "pathtrace":
+        if args.method == "lightmap":
+            from .bake.shade import render_bake
+            with stats.stage("lightmap_view"), bar(args.height, "lightmap view", "row") as b:
+                image = render_bake(bake, camera, args.width, args.height, b.update, tree)
+        elif args.method == "pathtrace":
             from .render.pathtrace import render_pathtrace
             with stats.stage("pathtrace"), bar(args.height, f"path tracing {args.spp} spp", "row") as b:
                 image = render_pathtrace(tree, surf, cam, args.width, args.height, args.spp, args.seed, b.update)
@@ -179,6 +189,66 @@ def cmd_render(args):
     if args.stats:
         stats.write(args.stats)
     print(f"wrote {args.output}  ({args.width}x{args.height}, {stats.as_dict()['total_seconds']:.2f} s)")
+    return 0
+
+
+def bake_summary(stats, bake) -> str:
+    """The closing table of `voxbake bake`: counts, then time and peak
+    memory per stage."""
+    c = stats.counters
+    rows = [("voxels", f"{c.get('voxels', 0):,} (cell {c.get('cell_size', 0):.4g})"),
+            ("directions per bounce", " ".join(str(d) for d in c.get("directions_per_bounce", [])) or "-"),
+            ("photons", f"{c.get('photons', 0):,} ({c.get('photons_landed', 0):,} landed)"),
+            ("bounces", f"{c.get('bounces', 0)} ({c.get('stop_reason', '')})"),
+            ("VPLs / average cut", "- (texel values from the voxel solution; lightcuts not used)"),
+            ("texels", f"{c.get('texels', 0):,} in {c.get('charts', 0):,} maps ({c.get('texels_covered', 0):,} "
+                       f"sampled, {c.get('texels_inside', 0):,} inside geometry)"),
+            ("maps stored", f"{c.get('unique', 0):,} ({c.get('constant', 0):,} single-colour, dedup ratio "
+                            f"{c.get('dedup_ratio', 1):.2f})"),
+            ("pages", f"{c.get('pages', 0)} x 512^2 ({c.get('texels_stored', 0) / max(1, c.get('pages', 0)) / 512 ** 2:.0%} "
+                      f"used)"),
+            ("triangles", f"{bake.triangle_count:,} baked")]
+    w = max(len(k) for k, _ in rows)
+    out = [f"  {k:<{w}}  {v}" for k, v in rows]
+    out.append(f"  {'stage':<{w}}  {'seconds':>8}  {'peak MiB':>9}")
+    for name, e in stats.stages.items():
+        out.append(f"  {name:<{w}}  {e['seconds']:8.2f}  {e.get('peak_rss_mb', 0):9.0f}")
+    return "\n".join(out)
+
+
+def cmd_bake(args):
+    from .bake import bake_config, bake_scene, write_bake
+    from .config import threads
+    from .errors import ConfigError
+    from .fileio import check_output_path
+    from .startup import checkpoint
+    from .stats import Stats
+    check_output_path(args.output, (".glb",))
+    _check_common(args)
+    if args.uv == "xatlas":
+        raise VoxgiError("--uv xatlas is not available yet; use --uv per-triangle")
+    try:
+        config = bake_config(args.preset, args.uv, args.texel_density, resolution=args.resolution,
+                             cell_size=args.cell_size, radius=args.radius, photons=args.photons, seed=args.seed,
+                             threads=args.threads, memory_budget_mb=args.memory_budget, schedule=args.schedule,
+                             tolerance=args.tolerance, max_bounces=args.max_bounces)
+    except ConfigError as e:
+        raise ConfigError(f"invalid bake setting: {e}") from None
+    stats = Stats("bake")
+    with threads(args.threads):
+        with stats.stage("load"):
+            scene = _load(args)
+        bake, _, _, _ = bake_scene(scene, config, stats, progress=True)
+    if not np.isfinite(bake.pages).all() or bake.pages.min() < 0:
+        raise VoxgiError("internal error: non-finite or negative texels (please report)", args.scene)
+    checkpoint()
+    with stats.stage("write"):
+        write_bake(args.output, bake)
+    if args.stats:
+        stats.write(args.stats)
+    print(bake_summary(stats, bake))
+    size = os.path.getsize(args.output)
+    print(f"wrote {args.output}  ({size / 2 ** 20:.1f} MiB, {stats.as_dict()['total_seconds']:.2f} s)")
     return 0
 
 
@@ -249,7 +319,7 @@ def build_parser():
     ap = argparse.ArgumentParser(
         prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
         description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer. "
-                    "(The lightmap bake and the walkthrough viewer are not built yet: today it renders images.)")
+                    "It bakes lightmaps into glTF files (`voxbake bake`) and renders images.")
     ap.add_argument("--version", action="version", version="voxgi 0.1.0")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -271,12 +341,15 @@ def build_parser():
                                    "  pathtrace  reference path tracer (NEE + MIS, Russian roulette): unbiased,\n"
                                    "             the yardstick for the other methods\n"
                                    "  voxels     the voxel GI solution shown directly: each visible point takes\n"
-                                   "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n\n"
+                                   "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n"
+                                   "  lightmap   a bake file (`voxbake bake`) as a viewer shows it: albedo x\n"
+                                   "             lightmap irradiance / pi + emission (give the .glb as SCENE)\n\n"
                                    "EXR output is linear radiance (W m^-2 sr^-1); PNG is exposure-adjusted,\n"
                                    "ACES-filmic tone-mapped sRGB.")
     _scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
-    p.add_argument("--method", choices=("pathtrace", "voxels"), default="pathtrace", help="default: pathtrace")
+    p.add_argument("--method", choices=("pathtrace", "voxels", "lightmap"), default="pathtrace",
+                   help="default: pathtrace")
     p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
     p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
     p.add_argument("--spp", type=int, default=64, help="pathtrace: samples per pixel (default 64)")
@@ -287,6 +360,28 @@ def build_parser():
     _camera_args(p)
     _solver_args(p)
     p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("bake", help="bake lightmaps into a glTF file a viewer can walk through",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Bake a scene's diffuse global illumination into lightmaps and write a glTF\n"
+                                   "binary (.glb): the geometry with lightmap UVs (TEXCOORD_1), the lightmap\n"
+                                   "pages as 8-bit PNGs (MOZ_lightmap: three.js, Hubs, Unity read them) and as\n"
+                                   "half-float EXR (for voxview), cameras, lights and the bake's settings.\n\n"
+                                   "Presets: preview (coarse voxels, seconds), default, high (finer voxels, more\n"
+                                   "photons and directions). Texels are one voxel cell wide unless\n"
+                                   "--texel-density says otherwise. Every texel's value today comes from the\n"
+                                   "voxel solution; lightcuts will shade the default and high tiers.")
+    _scene_args(p)
+    p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
+    p.add_argument("--uv", choices=("per-triangle", "xatlas"), default="per-triangle",
+                   help="lightmap UVs: one square map per triangle (default) or xatlas charts (not yet available)")
+    p.add_argument("--texel-density", type=float, metavar="D",
+                   help="texels per scene unit (default: one texel per voxel cell)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")
+    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
+    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    _solver_args(p)
+    p.set_defaults(func=cmd_bake)
 
     p = sub.add_parser("audit", help="compare the voxel lines' visibility with continuous rays",
                        description="Visibility audit: for sampled (voxel, direction) pairs, compare the first voxel "

@@ -32,13 +32,14 @@ class Bake:
 
 
 def baked_scene(scene, charts, lightmaps, meta=None) -> Bake:
-    """Scene + charts + lightmaps -> Bake."""
-    tri, back = charts.tri, charts.back
-    order = np.array([0, 1, 2])
-    swap = np.where(back[:, None], np.array([0, 2, 1]), order)          # backs: reversed winding
+    """Scene + charts + lightmaps -> Bake, its triangles in the file's
+    order: by material, then page (one primitive each), then chart."""
+    order = np.lexsort((lightmaps.chart_page, scene.material_ids[charts.tri]))
+    tri, back = charts.tri[order], charts.back[order]
+    swap = np.where(back[:, None], np.array([0, 2, 1]), np.array([0, 1, 2]))          # backs: reversed winding
     front = scene.triangle_corners()[tri]
     corners = np.take_along_axis(front, swap[:, :, None], axis=1)
-    uv1 = np.take_along_axis(lightmaps.chart_uv, swap[:, :, None], axis=1)
+    uv1 = np.take_along_axis(lightmaps.chart_uv[order], swap[:, :, None], axis=1)
     uvs = None
     if scene.uvs is not None:
         uvs = np.take_along_axis(scene.uvs[scene.triangles[tri]], swap[:, :, None], axis=1).reshape(-1, 2)
@@ -58,5 +59,5 @@ def baked_scene(scene, charts, lightmaps, meta=None) -> Bake:
                   normals=normals.reshape(-1, 3).astype(np.float32),
                   uvs=None if uvs is None else uvs.astype(np.float32), cameras=tuple(scene.cameras),
                   lights=tuple(scene.lights), sky=scene.sky, path=scene.path)
-    return Bake(baked, uv1.astype(np.float32), lightmaps.chart_page.astype(np.int32), lightmaps.pages,
+    return Bake(baked, uv1.astype(np.float32), lightmaps.chart_page[order].astype(np.int32), lightmaps.pages,
                 lightmaps.page_scale.astype(np.float32), dict(meta or {}))

@@ -10,7 +10,7 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import PROBE_REACH, fill, inside_geometry, texel_points
+from .texels import fill, inside_geometry, texel_points
 from .voxel_irradiance import reconstruct
 
 LIFT = 0.05   # cells: texel points are lifted this far off their surface for the visibility rays
@@ -48,7 +48,7 @@ def preview_texels(scene, solution, bvh, surfaces, charts: Charts, seed=0) -> Te
     off = charts.offsets
     point, covered = texel_points(corners, charts.tri, charts.corners2d, charts.size, off)
     lift = LIFT * min(h, float(charts.texel.min()))
-    reach = PROBE_REACH * max(h, float(charts.texel.max()))
+    reach = np.inf
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners,
                              charts.tri, charts.back, off, point, covered, lift, reach, seed)
     values, found = reconstruct(bvh.arrays, corners, charts.tri, charts.back, off, point, covered,
@@ -60,18 +60,18 @@ def preview_texels(scene, solution, bvh, surfaces, charts: Charts, seed=0) -> Te
 
 
 def finish(charts, point, covered, inside, values, found) -> TexelSet:
-    """Fills the texels that hold no value of their own (uncovered, inside
-    geometry, no voxel) from their neighbours; a chart with no valid texel
-    at all (a floor wholly under a box) keeps the values it has."""
-    filled = covered & found & ~inside
+    """Texels inside geometry next to a valid one take their valid
+    neighbours' mean (one ring: what bilinear filtering at the object's
+    outline reads), the other covered ones keep their own value, and the
+    texels around the triangle are filled from them (texels.py)."""
+    valid = covered & found & ~inside
+    values = np.where((covered & found)[:, None], values, 0.0)
     off = charts.offsets
-    counts = np.add.reduceat(filled, off[:-1]) if len(charts) else np.zeros(0)
-    none = np.nonzero(counts == 0)[0]
-    for c in none:  # nothing valid: take the values inside, never read from a visible place anyway
-        s = slice(off[c], off[c + 1])
-        filled[s] = covered[s] & found[s]
-    values = np.where(filled[:, None], values, 0.0)
-    fill(values, filled, off, charts.size.astype(np.int64))
+    size = charts.size.astype(np.int64)
+    filled = valid.copy()
+    fill(values, filled, off, size, 1, covered & found & inside)
+    filled |= covered & found  # deeper inside texels: their own value
+    fill(values, filled, off, size)
     return TexelSet(charts, point, covered, inside, values, filled)
 
 

@@ -11,11 +11,15 @@ inside geometry, and how empty texels are filled (docs/design.md section 8).
   distance 1 of x, hence within Euclidean distance sqrt 2 < COVER).
 - Inside geometry: a covered texel whose point lies where the surface is
   hidden inside a closed object (a floor under a box, a wall's end inside
-  the next wall) sees the back faces of the object around it. PROBES short
-  rays over the hemisphere tell it; a texel with at least PROBE_BACK of
+  the next wall) sees the back faces of the object around it. PROBES rays
+  over the hemisphere tell it (the nearest surface each meets, at any
+  distance: a box's lid may be many texels above the floor under it); a texel with at least PROBE_BACK of
   them on back faces is *invalid*: its own value (the dark inside) would
   bleed into the visible texels beside it through bilinear filtering, so
-  it is refilled from its valid neighbours, as production bakers do.
+  the first ring of them (the texels a bilinear lookup at the object's
+  outline reads) takes its valid neighbours' mean instead; deeper ones keep
+  their own value (refilling them further would carry light under a thick
+  wall into the dark room beyond it).
 - Fill: empty texels take the mean of their filled 4-neighbours, layer by
   layer: exactly the texels within city-block distance < FILL_DISTANCE of
   a filled texel are filled.
@@ -36,8 +40,8 @@ COVER = 1.5           # texels: centres this near the triangle are sampled
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
 FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
 PROBES = 16           # rays per texel for the inside-geometry test
-PROBE_BACK = 0.25     # fraction of probes on back faces that marks a texel inside geometry
-PROBE_REACH = 2.0     # probe length in cells (or texels, the larger)
+PROBE_BACK = 0.6      # fraction of probes on back faces that marks a texel inside geometry (a floor texel at the
+#                       foot of a one-sided wall seen from behind sees its back in half the hemisphere: not inside)
 
 
 @njit(cache=True, inline="always")
@@ -124,9 +128,9 @@ def side_normal(corners, t, back):
 def inside_geometry(bvh, double, mat_of, corners, chart_tri, chart_back, offsets, point, covered, offset, reach,
                     seed):
     """(N,) bool: covered texels whose point is hidden inside geometry (at
-    least PROBE_BACK of PROBES cosine-distributed rays of length `reach`,
-    started `offset` off the surface, hit the back of a one-sided
-    triangle). Stratified directions, rotated per texel by a hash."""
+    least PROBE_BACK of PROBES cosine-distributed rays, started `offset`
+    off the surface, first hit the back of a one-sided triangle within
+    `reach`). Stratified directions, rotated per texel by a hash."""
     total = offsets[-1]
     out = np.zeros(total, np.bool_)
     side = int(math.sqrt(PROBES))
@@ -166,20 +170,21 @@ def inside_geometry(bvh, double, mat_of, corners, chart_tri, chart_back, offsets
 
 
 @njit(cache=True, parallel=True)
-def fill(values, filled, offsets, size):
-    """Fills, in place, the empty texels within city-block distance <
-    FILL_DISTANCE of a filled one: layer d takes the mean of its filled
-    4-neighbours of layers < d. values (N, 3) float64, filled (N,) bool
-    (updated)."""
+def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
+    """Fills, in place, the empty texels within city-block distance <=
+    `layers` of a filled one (default: < FILL_DISTANCE): layer d takes the
+    mean of its filled 4-neighbours of layers < d. values (N, 3) float64,
+    filled (N,) bool (updated); target (N,) bool: only these may be filled
+    (None: any)."""
     for c in prange(len(size)):
         s = size[c]
         o = offsets[c]
-        for d in range(1, FILL_DISTANCE):
+        for d in range(1, layers + 1):
             new = np.zeros(s * s, np.bool_)
             for j in range(s):
                 for i in range(s):
                     k = o + j * s + i
-                    if filled[k]:
+                    if filled[k] or (target is not None and not target[k]):
                         continue
                     a0 = a1 = a2 = 0.0
                     m = 0

@@ -1,0 +1,154 @@
+"""Lightmap stage on its own: charts, texel points, fill, quadtree packing,
+single-colour maps and deduplication (docs/design.md section 8)."""
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.ndimage import distance_transform_cdt
+
+from baker.lightmap import PAGE, build_atlas, pack_quadtree, per_triangle_charts
+from baker.lightmap.charts import BORDER, MAX_SIZE, MIN_SIZE
+from baker.lightmap.texels import FILL_DISTANCE, fill, texel_points
+
+POW2 = [8, 16, 32, 64, 128, 256, 512]
+
+
+def paint(sizes, page, x, y, n_pages):
+    """Cover counts per page texel (8-texel blocks suffice: every placement
+    is a multiple of 8)."""
+    b = PAGE // MIN_SIZE
+    cover = np.zeros((n_pages, b, b), np.int32)
+    for s, p, x0, y0 in zip(sizes, page, x, y):
+        assert 0 <= p < n_pages and x0 % MIN_SIZE == 0 and y0 % MIN_SIZE == 0
+        assert 0 <= x0 and 0 <= y0 and x0 + s <= PAGE and y0 + s <= PAGE  # inside its page
+        cover[p, y0 // MIN_SIZE:(y0 + s) // MIN_SIZE, x0 // MIN_SIZE:(x0 + s) // MIN_SIZE] += 1
+    return cover
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from(POW2), min_size=1, max_size=300))
+def test_quadtree_places_without_overlap_and_fills_pages(sizes):
+    page, x, y, n = pack_quadtree(sizes)
+    cover = paint(sizes, page, x, y, n)
+    assert cover.max() == 1  # no two placements overlap
+    area = sum(s * s for s in sizes)
+    assert n == -(-area // PAGE ** 2)  # power-of-two squares: no page opened before the last one is full
+    assert n == 1 or cover[:-1].min() == 1  # every page but the last is filled completely
+
+
+def test_quadtree_page_of_512_and_many_small():
+    page, x, y, n = pack_quadtree([8] * 4096 + [512])
+    assert n == 2 and (page[:4096] == 1).all() and page[4096] == 0  # the large map first, the small ones fill page 2
+
+
+def square_chart(size, tri=0):
+    """A chart of a right triangle filling most of a size x size map."""
+    corners = np.array([[[0, 0, 0], [size - 2 * BORDER, 0, 0], [0, 0, size - 2 * BORDER]]], float)
+    return per_triangle_charts(corners, np.zeros(1, bool), 1.0)
+
+
+def test_charts_are_power_of_two_squares_with_border():
+    rng = np.random.default_rng(1)
+    corners = rng.uniform(-3, 3, (200, 3, 3))
+    corners[:5] *= 100  # larger than a page at this texel size: coarser texels
+    ch = per_triangle_charts(corners, rng.uniform(size=200) < 0.3, 0.1)
+    assert len(ch) == 200 + int((ch.back).sum()) and ch.back.sum() > 20
+    s = ch.size
+    assert ((s & (s - 1)) == 0).all() and s.min() >= MIN_SIZE and s.max() <= MAX_SIZE
+    assert (ch.corners2d.min(axis=(1, 2)) >= BORDER - 1e-9).all()           # the border is kept
+    assert (ch.corners2d.max(axis=(1, 2)) <= s - BORDER + 1e-9).all()
+    assert (ch.texel[:10] > 0.1).any() and np.allclose(ch.texel[ch.tri >= 5], 0.1)
+
+
+def test_texel_points_lie_on_their_triangle():
+    rng = np.random.default_rng(2)
+    corners = rng.uniform(0, 4, (50, 3, 3))
+    ch = per_triangle_charts(corners, np.zeros(50, bool), 0.25)
+    pts, covered = texel_points(corners, ch.tri, ch.corners2d, ch.size, ch.offsets)
+    off = ch.offsets
+    for c in range(len(ch)):
+        t = corners[ch.tri[c]]
+        p = pts[off[c]:off[c + 1]]
+        n = np.cross(t[1] - t[0], t[2] - t[0])
+        # on the plane, and inside the triangle (barycentrics >= 0)
+        assert np.abs((p - t[0]) @ n).max() < 1e-9 * np.linalg.norm(n) * 10
+        m = np.stack([t[1] - t[0], t[2] - t[0]], axis=1)
+        b = np.linalg.lstsq(m, (p - t[0]).T, rcond=None)[0]
+        assert b.min() > -1e-9 and (b.sum(axis=0)).max() < 1 + 1e-9
+        # a covered texel's centre is near the triangle: at least the texels whose centre lies inside
+        cov = covered[off[c]:off[c + 1]]
+        assert cov.sum() >= 1
+
+
+def test_fill_reaches_exactly_city_block_distance_below_four():
+    rng = np.random.default_rng(3)
+    s = 32
+    filled = rng.uniform(size=(s, s)) < 0.02
+    filled[5, 5] = True
+    values = np.where(filled[..., None], rng.uniform(1, 2, (s, s, 3)), 0.0).reshape(-1, 3)
+    before = values.copy()
+    f = filled.reshape(-1).copy()
+    fill(values, f, np.array([0, s * s]), np.array([s]))
+    dist = distance_transform_cdt(~filled, metric="taxicab")
+    assert np.array_equal(f.reshape(s, s), dist < FILL_DISTANCE)
+    assert np.array_equal(values[filled.reshape(-1)], before[filled.reshape(-1)])  # filled texels kept
+    assert (values[~f] == 0).all()
+    # each filled texel's value lies within the range of the values around it: a mean, never an extrapolation
+    new = f & ~filled.reshape(-1)
+    assert values[new].min() >= 1 and values[new].max() <= 2
+
+
+def tile_charts(n):
+    """n identical tiles (a unit square as two triangles each), side by side."""
+    corners = []
+    for i in range(n):
+        corners += [[[i, 0, 0], [i + 1, 0, 0], [i + 1, 0, 1]], [[i, 0, 0], [i + 1, 0, 1], [i, 0, 1]]]
+    corners = np.array(corners, float)
+    return per_triangle_charts(corners, np.zeros(len(corners), bool), 1 / 16)
+
+
+def test_dedup_stores_one_map_per_distinct_lighting():
+    """A grid of identical tiles, three distinct lightings (a gradient over
+    the map, the same gradient twice as bright, a uniform light): three
+    maps are stored (both triangles of a tile see the same gradient over
+    their map), and the uniform ones become 8 x 8."""
+    ch = tile_charts(12)
+    off = ch.offsets
+    values = np.zeros((off[-1], 3))
+    for c in range(len(ch)):
+        s = ch.size[c]
+        j, i = np.divmod(np.arange(s * s), s)
+        tile = ch.tri[c] // 2
+        grad = 1.0 + 0.1 * i + 0.05 * j
+        v = grad if tile % 3 == 0 else (2 * grad if tile % 3 == 1 else np.full(s * s, 0.7))
+        values[off[c]:off[c + 1]] = v[:, None] * [1.0, 0.9, 0.8]
+    filled = np.ones(off[-1], bool)
+    maps = build_atlas(values, filled, ch, np.zeros(len(ch), bool))
+    assert maps.counts["maps"] == 24
+    assert maps.counts["unique"] == 3
+    assert maps.counts["constant"] == 8
+    assert maps.dedup_ratio == pytest.approx(24 / 3)
+    # the uniform tiles' UVs all sit at the centre of their 8 x 8 map, which holds the value
+    uv = maps.chart_uv[ch.tri // 2 % 3 == 2]
+    assert np.ptp(uv, axis=(0, 1)).max() == 0
+    x, y = (uv[0, 0] * PAGE).astype(int)
+    assert np.allclose(maps.pages[maps.chart_page[2 * 2], y, x], [0.7, 0.63, 0.56], rtol=1e-3)
+
+
+def test_atlas_pages_hold_each_map_where_its_uvs_point():
+    rng = np.random.default_rng(4)
+    corners = rng.uniform(0, 3, (40, 3, 3))
+    ch = per_triangle_charts(corners, np.zeros(40, bool), 0.05)
+    values = rng.uniform(0, 5, (ch.offsets[-1], 3))
+    maps = build_atlas(values, np.ones(len(values), bool), ch, np.zeros(len(ch), bool))
+    assert maps.counts["unique"] == 40
+    off = ch.offsets
+    for c in range(len(ch)):
+        s = ch.size[c]
+        # the chart's corner UVs map back to the corners2d in its block: the block's origin is uv * PAGE - corners2d
+        o = maps.chart_uv[c] * PAGE - ch.corners2d[c]
+        assert np.ptp(o, axis=0).max() < 1e-3
+        x0, y0 = np.rint(o[0]).astype(int)
+        block = maps.pages[maps.chart_page[c], y0:y0 + s, x0:x0 + s].reshape(-1, 3)
+        assert np.allclose(block, values[off[c]:off[c + 1]].astype(np.float16), rtol=0, atol=0)
+    assert (maps.page_scale >= maps.pages.reshape(len(maps.pages), -1).max(axis=1) * 0.999).all()
