@@ -79,5 +79,8 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}
+    if not scene.cameras:  # a viewer opens the bake at a camera: the automatic one that sees the scene
+        from dataclasses import replace
+        scene = replace(scene, cameras=(replace(scene.camera(None, bvh), name="auto"),))
     bake = baked_scene(scene, charts, maps, meta)
     return bake, solution, texels, maps

@@ -5,7 +5,9 @@ from the bake alone (docs/design.md section 9):
 
 H bilinearly interpolated from the lightmap page at the point's
 TEXCOORD_1, 4 x 4 box-filtered samples per pixel (as the voxel view and
-the path tracer). The back of a triangle is black. The reference the
+the path tracer). Triangles seen from behind are culled, as viewers do
+(a two-sided surface is two baked triangles, one per face). Albedo
+textures are sampled bilinearly, repeated, as glTF's default sampler. The reference the
 viewer's snapshots and the three.js screenshot are checked against.
 """
 from __future__ import annotations
@@ -16,10 +18,9 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.traverse import closest_hit, hit_normal
+from ..kernels.traverse import closest_hit
 from ..render.camera import camera_array, primary_ray, render_bands
 from ..render.voxelview import SUBPIXELS
-from ..scene.surfaces import albedo_at
 
 
 @njit(cache=True, inline="always")
@@ -44,6 +45,34 @@ def bilinear(pages, p, u, v):
     return r0, r1, r2
 
 
+@njit(cache=True, inline="always")
+def albedo_bilinear(surf, tri, b1, b2):
+    """Albedo at barycentrics (b1, b2) of triangle `tri`: the factor times
+    the texture sampled bilinearly, repeated (what a viewer's sampler does)."""
+    mat = surf.tri_material[tri]
+    r, g, b = surf.albedo[mat, 0], surf.albedo[mat, 1], surf.albedo[mat, 2]
+    off = surf.tex_offset[mat]
+    if off < 0:
+        return r, g, b
+    uv = surf.uvs
+    w, h = surf.tex_size[mat, 0], surf.tex_size[mat, 1]
+    b0 = 1.0 - b1 - b2
+    x = (b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]) * w - 0.5
+    y = (b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]) * h - 0.5
+    x0 = int(math.floor(x))
+    y0 = int(math.floor(y))
+    fx, fy = x - x0, y - y0
+    t0 = t1 = t2 = 0.0
+    for dy in range(2):
+        for dx in range(2):
+            wt = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
+            k = off + ((y0 + dy) % h) * w + (x0 + dx) % w
+            t0 += wt * surf.tex_data[k, 0]
+            t1 += wt * surf.tex_data[k, 1]
+            t2 += wt * surf.tex_data[k, 2]
+    return r * t0, g * t1, b * t2
+
+
 @njit(cache=True, parallel=True)
 def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
     n = (row1 - row0) * width
@@ -58,18 +87,15 @@ def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
             fx = (sub % SUBPIXELS + 0.5) / SUBPIXELS
             fy = (sub // SUBPIXELS + 0.5) / SUBPIXELS
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
-            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf, True)
             if j < 0:
-                continue
-            nx, ny, nz = hit_normal(bvh, j)
-            if nx * dx + ny * dy + nz * dz > 0.0:
                 continue
             tri = bvh.tri_index[j]
             b0 = 1.0 - u - v
             lu = b0 * uv1[tri, 0, 0] + u * uv1[tri, 1, 0] + v * uv1[tri, 2, 0]
             lv = b0 * uv1[tri, 0, 1] + u * uv1[tri, 1, 1] + v * uv1[tri, 2, 1]
             h0, h1, h2 = bilinear(pages, page[tri], lu, lv)
-            a0, a1, a2 = albedo_at(surf, tri, u, v)
+            a0, a1, a2 = albedo_bilinear(surf, tri, u, v)
             m = surf.tri_material[tri]
             r0 += a0 * inv_pi * h0 + surf.emission[m, 0]
             r1 += a1 * inv_pi * h1 + surf.emission[m, 1]

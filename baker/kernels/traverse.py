@@ -83,9 +83,10 @@ def intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz):
 
 
 @njit(cache=True, error_model="numpy")
-def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
+def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False):
     """First hit with t in (tmin, tmax): (t, bvh-order triangle j, u, v);
-    j = -1 and t = inf on a miss."""
+    j = -1 and t = inf on a miss. cull_back: triangles seen from behind
+    (winding normal . d > 0) are passed through, as a rasterizer culls them."""
     cb, root, right, first, count, tris = bvh.child_box, bvh.root_box, bvh.right, bvh.first, bvh.count, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
@@ -101,6 +102,10 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
             for j in range(f, f + count[node]):
                 t, u, v = intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz)
                 if tmin < t < best_t:
+                    if cull_back:
+                        nx, ny, nz = hit_normal(bvh, j)
+                        if nx * dx + ny * dy + nz * dz > 0.0:
+                            continue
                     best_t, best_j, best_u, best_v = t, j, u, v
             node = -1
         else:
