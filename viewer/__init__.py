@@ -1,5 +1,7 @@
-"""voxgi viewer: moderngl renderer, glfw window, headless snapshots.
+"""voxgi viewer: a bake (`voxbake bake`) in a glfw window or in headless
+snapshots (docs/design.md section 9).
 
-The walkthrough and the progressive preview arrive with the bake file; what
-is here now is the headless GL context every later part renders through.
+camera.py (pure maths, explicit dt), renderer.py (takes a moderngl
+context), snapshot.py (standalone EGL), window.py (glfw: the only import of
+it), cli.py (`voxview`).
 """

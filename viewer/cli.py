@@ -1,14 +1,72 @@
-"""`voxview`: the viewer's command line.
-
-Today: `glinfo` opens a headless EGL context, builds every shipped shader
-program and reports the GL renderer: the check that this machine can run
-the viewer's snapshots.
-"""
+"""`voxview`: walk through a bake (`voxbake bake`) in a window, or take
+headless snapshots of it."""
 from __future__ import annotations
 
 import argparse
+import sys
 
 from baker.cli import run
+from baker.errors import VoxgiError
+
+from .renderer import MODES
+
+EPILOG = """examples:
+  voxbake bake cornell_box -o cornell.glb --preset preview
+  voxview cornell.glb
+  voxview snapshot cornell.glb --width 640 --height 480 -o shot.png
+  voxview snapshot cornell.glb --mode checker -o texels.png
+  voxview glinfo
+
+Keys in the window: W A S D (Q E down/up) move, Shift faster, drag to look, wheel zooms, 1-9 cameras,
++/- exposure (0 automatic), F1-F5 or M views, B bicubic, F12 screenshot, Esc quits.
+"""
+COMMANDS = ("walk", "snapshot", "glinfo")
+
+
+def _read(path):
+    from baker.bake import read_bake
+    return read_bake(path)
+
+
+def _camera(bake, which):
+    return bake.scene.camera(which)
+
+
+def cmd_walk(args):
+    from .window import Walkthrough, load_script
+    if args.width < 64 or args.height < 64:
+        raise VoxgiError(f"window size {args.width}x{args.height} too small (64x64 at least)")
+    script = load_script(args.script) if args.script else None
+    if args.screenshot:
+        from baker.fileio import check_output_path
+        check_output_path(args.screenshot, (".png",))
+    bake = _read(args.bake)
+    cam = _camera(bake, args.camera)
+    result = Walkthrough(bake, args.width, args.height, cam, args.exposure, args.mode, script, args.frames,
+                         args.screenshot, title=f"voxview {args.bake}").run()
+    secs = result["seconds"]
+    print(f"{result['frames']} frames in {secs:.2f} s ({result['frames'] / max(secs, 1e-9):.1f} fps)")
+    return 0
+
+
+def cmd_snapshot(args):
+    from baker.fileio import check_output_path
+    from baker.render import write_image
+    from baker.startup import checkpoint
+    from .snapshot import snapshot
+    check_output_path(args.output, (".png", ".exr"))
+    if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
+        raise VoxgiError(f"image size {args.width}x{args.height} out of range")
+    if args.mode == "preview":
+        raise VoxgiError("--mode preview needs the bake's ordered VPL list, which bakes do not carry yet "
+                         "(it comes with lightcuts); use --mode lightmap")
+    bake = _read(args.bake)
+    cam = _camera(bake, args.camera)
+    img = snapshot(bake, cam, args.width, args.height, args.mode, args.samples, args.bicubic)
+    checkpoint()
+    write_image(args.output, img, args.exposure)
+    print(f"wrote {args.output}  ({args.width}x{args.height}, {args.mode})")
+    return 0
 
 
 def cmd_glinfo(args):
@@ -28,9 +86,46 @@ def cmd_glinfo(args):
 
 
 def build_parser():
-    ap = argparse.ArgumentParser(prog="voxview", description="voxgi viewer.")
+    ap = argparse.ArgumentParser(
+        prog="voxview", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
+        description="voxgi viewer: walk through a baked scene (a .glb written by `voxbake bake`) in a window, or "
+                    "take snapshots of it without a display. `voxview BAKE.glb` is `voxview walk BAKE.glb`.")
+    ap.add_argument("--version", action="version", version="voxgi 0.1.0")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+
+    p = sub.add_parser("walk", help="open a window and walk through the bake",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Open a window on a bake: albedo x lightmap / pi + emission, filmic tone map, "
+                                   "sRGB.\n\n" + EPILOG.split("\n\n", 1)[1])
+    p.add_argument("bake", help="bake file (.glb from `voxbake bake`)")
+    p.add_argument("--camera", default=None, help="start at this camera (name or index; default: the first)")
+    p.add_argument("--width", type=int, default=1280, help="window width (default 1280)")
+    p.add_argument("--height", type=int, default=720, help="window height (default 720)")
+    p.add_argument("--exposure", type=float, default=None, help="exposure in EV (default: automatic)")
+    p.add_argument("--mode", choices=MODES, default="lightmap", help="view to start in (default: lightmap)")
+    p.add_argument("--script", metavar="FILE.json", help="scripted input events (see viewer/window.py)")
+    p.add_argument("--frames", type=int, help="close after this many frames")
+    p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame here")
+    p.set_defaults(func=cmd_walk)
+
+    p = sub.add_parser("snapshot", help="render a bake headless (EGL, no display) to an image",
+                       description="Render one camera of a bake offscreen through standalone EGL (Mesa llvmpipe "
+                                   "without a GPU) with 4 x 4 samples per pixel. EXR: linear radiance; PNG: "
+                                   "exposure, filmic tone map, sRGB.")
+    p.add_argument("bake", help="bake file (.glb from `voxbake bake`)")
+    p.add_argument("-o", "--output", required=True, help="output image (.png or .exr)")
+    p.add_argument("--camera", default=None, help="camera name or index (default: the first)")
+    p.add_argument("--width", type=int, default=512)
+    p.add_argument("--height", type=int, default=512)
+    p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
+                   help="lightmap (default), a debug view, or preview (progressive instant radiosity)")
+    p.add_argument("--frames", type=int, default=64, help="preview mode: frames to accumulate")
+    p.add_argument("--samples", type=int, default=4, help="samples per pixel along each axis (default 4)")
+    p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
+    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")
+    p.set_defaults(func=cmd_snapshot)
+
     p = sub.add_parser("glinfo", help="check headless OpenGL (EGL) and build every shipped shader",
                        description="Open a standalone EGL context (no window, no display), print the GL renderer "
                                    "and version, and compile every shader program shipped in `shaders`.")
@@ -39,5 +134,8 @@ def build_parser():
 
 
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] not in COMMANDS and not argv[0].startswith("-"):
+        argv.insert(0, "walk")  # `voxview BAKE.glb`
     args = build_parser().parse_args(argv)
     return run(args.func, args)

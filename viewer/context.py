@@ -6,14 +6,27 @@ from baker.errors import GLError
 
 
 def headless_context(require: int = 330):
-    """moderngl.Context on standalone EGL; GLError with the reason if none."""
+    """moderngl.Context on standalone EGL. Where EGL is missing and an X
+    display is there (Xvfb), a standalone GLX context on it instead, said
+    on stderr. GLError with the reasons if neither."""
+    import os
+    import sys
+
     import moderngl
     try:
         return moderngl.create_context(standalone=True, backend="egl", require=require)
     except Exception as e:  # moderngl raises plain Exceptions with EGL codes
-        raise GLError(f"no headless OpenGL {require // 100}.{require % 100 // 10} context through EGL "
-                      f"({str(e).splitlines()[0] if str(e) else type(e).__name__}); install libegl1 libgl1 "
-                      f"libgl1-mesa-dri (scripts/setup.sh does)") from e
+        why = str(e).splitlines()[0] if str(e) else type(e).__name__
+    if os.environ.get("DISPLAY"):
+        try:
+            ctx = moderngl.create_context(standalone=True, require=require)
+            print(f"note: no EGL ({why}); rendering through the X display {os.environ['DISPLAY']} instead",
+                  file=sys.stderr)
+            return ctx
+        except Exception as e:
+            why += f"; X display {os.environ['DISPLAY']}: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+    raise GLError(f"no headless OpenGL {require // 100}.{require % 100 // 10} context: EGL: {why}; install "
+                  f"libegl1 libgl1 libgl1-mesa-dri (scripts/setup.sh does), or run under Xvfb")
 
 
 def build_program(ctx, vert: str, frag: str):

@@ -1,0 +1,84 @@
+#version 330 core
+// Walkthrough shading of a bake (docs/design.md section 9):
+//   L = albedo * H / pi + L_e,
+// H the lightmap irradiance (bilinear, or bicubic B-spline), then exposure, the ACES filmic
+// curve (Narkowicz 2015) and the sRGB transfer curve; or linear radiance for snapshots.
+// Debug views: 1 lightmap only (H / pi), 2 albedo only, 3 texel-density checker, 4 pages.
+uniform vec3 u_albedo;
+uniform vec3 u_emission;
+uniform bool u_has_texture;
+uniform sampler2D u_texture;
+uniform sampler2DArray u_pages;
+uniform int u_page;
+uniform int u_mode;
+uniform bool u_bicubic;
+uniform float u_exposure;   // linear scale
+uniform bool u_tonemap;     // false: linear radiance out (snapshots)
+in vec2 v_uv0;
+in vec2 v_uv1;
+out vec4 f_color;
+
+const float PI = 3.14159265358979;
+
+vec4 cubic(float v) {  // uniform cubic B-spline weights
+    vec4 n = vec4(1.0, 2.0, 3.0, 4.0) - v;
+    vec4 s = n * n * n;
+    float x = s.x;
+    float y = s.y - 4.0 * s.x;
+    float z = s.z - 4.0 * s.y + 6.0 * s.x;
+    float w = 6.0 - x - y - z;
+    return vec4(x, y, z, w) / 6.0;
+}
+
+vec3 bicubic(vec2 uv) {  // 4 bilinear taps (Sigg & Hadwiger 2005)
+    vec2 size = vec2(textureSize(u_pages, 0).xy);
+    vec2 t = uv * size - 0.5;
+    vec2 f = fract(t);
+    t -= f;
+    vec4 xc = cubic(f.x), yc = cubic(f.y);
+    vec4 c = t.xxyy + vec2(-0.5, 1.5).xyxy;
+    vec4 s = vec4(xc.xz + xc.yw, yc.xz + yc.yw);
+    vec4 o = (c + vec4(xc.yw, yc.yw) / s) / size.xxyy;
+    vec3 s0 = texture(u_pages, vec3(o.xz, u_page)).rgb, s1 = texture(u_pages, vec3(o.yz, u_page)).rgb;
+    vec3 s2 = texture(u_pages, vec3(o.xw, u_page)).rgb, s3 = texture(u_pages, vec3(o.yw, u_page)).rgb;
+    float sx = s.x / (s.x + s.y), sy = s.z / (s.z + s.w);
+    return mix(mix(s3, s2, sx), mix(s1, s0, sx), sy);
+}
+
+vec3 aces(vec3 x) {
+    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+}
+
+vec3 to_srgb(vec3 x) {
+    x = clamp(x, 0.0, 1.0);
+    return mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
+}
+
+void main() {
+    vec3 H = u_bicubic ? bicubic(v_uv1) : texture(u_pages, vec3(v_uv1, u_page)).rgb;
+    H = max(H, 0.0);
+    vec3 albedo = u_albedo;
+    if (u_has_texture) albedo *= texture(u_texture, v_uv0).rgb;
+    vec3 L;
+    if (u_mode == 1) {
+        L = H / PI;
+    } else if (u_mode == 2) {
+        L = albedo;
+    } else if (u_mode == 3) {
+        ivec2 texel = ivec2(floor(v_uv1 * vec2(textureSize(u_pages, 0).xy)));
+        float check = ((texel.x + texel.y) & 1) == 0 ? 1.0 : 0.55;
+        L = vec3(check) * (0.25 + H / PI);
+    } else if (u_mode == 4) {
+        vec3 hue = 0.5 + 0.5 * cos(6.2831853 * (float(u_page) * 0.618034 + vec3(0.0, 0.33, 0.67)));
+        vec2 cell = fract(v_uv1 * vec2(textureSize(u_pages, 0).xy) / 8.0);
+        float line = (min(cell.x, cell.y) < 0.06) ? 0.3 : 1.0;  // the quadtree's 8-texel grid
+        L = hue * line * (0.25 + H / PI);
+    } else {
+        L = albedo * H / PI + u_emission;
+    }
+    if (u_tonemap) {
+        f_color = vec4(to_srgb(aces(L * u_exposure)), 1.0);
+    } else {
+        f_color = vec4(L, 1.0);
+    }
+}
