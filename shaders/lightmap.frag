@@ -4,16 +4,24 @@
 // H the lightmap irradiance (bilinear, or bicubic B-spline), then exposure, the ACES filmic
 // curve (Narkowicz 2015) and the sRGB transfer curve; or linear radiance for snapshots.
 // Debug views: 1 lightmap only (H / pi), 2 albedo only, 3 texel-density checker, 4 pages.
+// MODE, BICUBIC and TONEMAP are compile-time constants (the renderer builds one program per
+// combination it uses): no branch on them is left for the fragment loop (llvmpipe pays for those).
+#ifndef MODE
+#define MODE 0
+#endif
+#ifndef BICUBIC
+#define BICUBIC 0
+#endif
+#ifndef TONEMAP
+#define TONEMAP 1
+#endif
 uniform vec3 u_albedo;
 uniform vec3 u_emission;
 uniform bool u_has_texture;
 uniform sampler2D u_texture;
 uniform sampler2DArray u_pages;
 uniform int u_page;
-uniform int u_mode;
-uniform bool u_bicubic;
-uniform float u_exposure;   // linear scale
-uniform bool u_tonemap;     // false: linear radiance out (snapshots)
+uniform float u_exposure;   // linear scale (TONEMAP 0: linear radiance out, for snapshots)
 in vec2 v_uv0;
 in vec2 v_uv1;
 out vec4 f_color;
@@ -55,30 +63,33 @@ vec3 to_srgb(vec3 x) {
 }
 
 void main() {
-    vec3 H = u_bicubic ? bicubic(v_uv1) : texture(u_pages, vec3(v_uv1, u_page)).rgb;
+#if BICUBIC
+    vec3 H = bicubic(v_uv1);
+#else
+    vec3 H = texture(u_pages, vec3(v_uv1, u_page)).rgb;
+#endif
     H = max(H, 0.0);
     vec3 albedo = u_albedo;
     if (u_has_texture) albedo *= texture(u_texture, v_uv0).rgb;
-    vec3 L;
-    if (u_mode == 1) {
-        L = H / PI;
-    } else if (u_mode == 2) {
-        L = albedo;
-    } else if (u_mode == 3) {
-        ivec2 texel = ivec2(floor(v_uv1 * vec2(textureSize(u_pages, 0).xy)));
-        float check = ((texel.x + texel.y) & 1) == 0 ? 1.0 : 0.55;
-        L = vec3(check) * (0.25 + H / PI);
-    } else if (u_mode == 4) {
-        vec3 hue = 0.5 + 0.5 * cos(6.2831853 * (float(u_page) * 0.618034 + vec3(0.0, 0.33, 0.67)));
-        vec2 cell = fract(v_uv1 * vec2(textureSize(u_pages, 0).xy) / 8.0);
-        float line = (min(cell.x, cell.y) < 0.06) ? 0.3 : 1.0;  // the quadtree's 8-texel grid
-        L = hue * line * (0.25 + H / PI);
-    } else {
-        L = albedo * H / PI + u_emission;
-    }
-    if (u_tonemap) {
-        f_color = vec4(to_srgb(aces(L * u_exposure)), 1.0);
-    } else {
-        f_color = vec4(L, 1.0);
-    }
+#if MODE == 1
+    vec3 L = H / PI;
+#elif MODE == 2
+    vec3 L = albedo;
+#elif MODE == 3
+    ivec2 texel = ivec2(floor(v_uv1 * vec2(textureSize(u_pages, 0).xy)));
+    float check = ((texel.x + texel.y) & 1) == 0 ? 1.0 : 0.55;
+    vec3 L = vec3(check) * (0.25 + H / PI);
+#elif MODE == 4
+    vec3 hue = 0.5 + 0.5 * cos(6.2831853 * (float(u_page) * 0.618034 + vec3(0.0, 0.33, 0.67)));
+    vec2 cell = fract(v_uv1 * vec2(textureSize(u_pages, 0).xy) / 8.0);
+    float line = (min(cell.x, cell.y) < 0.06) ? 0.3 : 1.0;  // the quadtree's 8-texel grid
+    vec3 L = hue * line * (0.25 + H / PI);
+#else
+    vec3 L = albedo * H / PI + u_emission;
+#endif
+#if TONEMAP
+    f_color = vec4(to_srgb(aces(L * u_exposure)), 1.0);
+#else
+    f_color = vec4(L, 1.0);
+#endif
 }

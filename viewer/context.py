@@ -29,10 +29,19 @@ def headless_context(require: int = 330):
                   f"libegl1 libgl1 libgl1-mesa-dri (scripts/setup.sh does), or run under Xvfb")
 
 
-def build_program(ctx, vert: str, frag: str):
-    """Compiles one shader pair from the shipped `shaders` package."""
+def _with_defines(src: str, defines) -> str:
+    if not defines:
+        return src
+    head, rest = src.split("\n", 1)  # the #version line stays first
+    return head + "\n" + "".join(f"#define {k} {int(v)}\n" for k, v in defines.items()) + rest
+
+
+def build_program(ctx, vert: str, frag: str, defines=None):
+    """Compiles one shader pair from the shipped `shaders` package, with
+    `defines` {NAME: int} put after the #version line of both."""
     import shaders
     try:
-        return ctx.program(vertex_shader=shaders.source(vert), fragment_shader=shaders.source(frag))
+        return ctx.program(vertex_shader=_with_defines(shaders.source(vert), defines),
+                           fragment_shader=_with_defines(shaders.source(frag), defines))
     except Exception as e:
         raise GLError(f"shader {vert}/{frag} failed to build: {str(e).strip().splitlines()[-1]}") from e

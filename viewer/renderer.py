@@ -16,7 +16,8 @@ import numpy as np
 
 from .camera import perspective, view_of
 
-MODES = ("lightmap", "irradiance", "albedo", "checker", "pages")  # u_mode 0..4
+MODES = ("lightmap", "irradiance", "albedo", "checker", "pages")  # the shader's MODE 0..4
+ATTRIBUTES = {"in_position": ("3f", "12x"), "in_uv0": ("2f", "8x"), "in_uv1": ("2f", "8x")}  # read, skipped
 
 
 @dataclass(frozen=True)
@@ -43,20 +44,14 @@ class Renderer:
     framebuffer."""
 
     def __init__(self, ctx, bake):
-        from .context import build_program
         self.ctx = ctx
         self.bake = bake
         scene = bake.scene
-        self.program = build_program(ctx, "lightmap.vert", "lightmap.frag")
         n = len(scene.vertices)
         uv0 = scene.uvs if scene.uvs is not None else np.zeros((n, 2), np.float32)
         data = np.concatenate([scene.vertices, uv0, bake.uv1.reshape(-1, 2)], axis=1)
         self.vbo = ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())
-        if "in_uv0" in self.program:
-            layout = (self.vbo, "3f 2f 2f", "in_position", "in_uv0", "in_uv1")
-        else:  # no textured material: the compiler dropped the texture coordinates
-            layout = (self.vbo, "3f 8x 2f", "in_position", "in_uv1")
-        self.vao = ctx.vertex_array(self.program, [layout])
+        self.variants = {}  # (mode, bicubic, tonemap) -> (program, vertex array)
         pages = np.ascontiguousarray(bake.pages, np.float16)
         p, size = pages.shape[0], pages.shape[1]
         self.pages = ctx.texture_array((size, size, p), 3, pages.tobytes(), dtype="f2")
@@ -74,6 +69,18 @@ class Renderer:
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
 
+    def variant(self, mode, bicubic, tonemap):
+        """The program (and its vertex array) of one view, built on first use."""
+        key = (MODES.index(mode), bool(bicubic), bool(tonemap))
+        if key not in self.variants:
+            from .context import build_program
+            prog = build_program(self.ctx, "lightmap.vert", "lightmap.frag",
+                                 {"MODE": key[0], "BICUBIC": key[1], "TONEMAP": key[2]})
+            names = [a for a in ATTRIBUTES if a in prog]  # a view may not read every attribute: skip its bytes
+            fmt = " ".join(ATTRIBUTES[a][0 if a in names else 1] for a in ATTRIBUTES)
+            self.variants[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, fmt, *names)]))
+        return self.variants[key]
+
     def clip_range(self, camera):
         """Near and far planes around the scene's bounds."""
         return self.extent * 1e-4, self.extent * 4.0
@@ -89,28 +96,30 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
-        prog = self.program
+        prog, vao = self.variant(mode, bicubic, tonemap)
         prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
-        prog["u_mode"].value = MODES.index(mode)
-        prog["u_exposure"].value = float(exposure)
-        prog["u_tonemap"].value = bool(tonemap)
-        prog["u_bicubic"].value = bool(bicubic)
+        if "u_exposure" in prog:
+            prog["u_exposure"].value = float(exposure)
         self.pages.use(0)
-        prog["u_pages"].value = 0
-        if "u_texture" in prog:
-            prog["u_texture"].value = 1
+        for name, unit in (("u_pages", 0), ("u_texture", 1)):
+            if name in prog:
+                prog[name].value = unit
         mats = self.bake.scene.materials
         for d in self.draws:
             m = mats[d.material]
-            prog["u_albedo"].value = tuple(float(v) for v in m.albedo)
-            prog["u_emission"].value = tuple(float(v) for v in m.emission)
-            prog["u_page"].value = d.page
             tex = self.textures.get(d.material)
-            prog["u_has_texture"].value = tex is not None
+            for name, value in (("u_albedo", tuple(float(v) for v in m.albedo)),
+                                ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
+                                ("u_has_texture", tex is not None)):
+                if name in prog:  # (a view may not read it)
+                    prog[name].value = value
             if tex is not None:
                 tex.use(1)
-            self.vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
+            vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
 
     def release(self):
-        for obj in (self.vao, self.vbo, self.pages, self.program, *self.textures.values()):
+        for prog, vao in self.variants.values():
+            vao.release()
+            prog.release()
+        for obj in (self.vbo, self.pages, *self.textures.values()):
             obj.release()
