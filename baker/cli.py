@@ -225,8 +225,6 @@ def cmd_bake(args):
     from .stats import Stats
     check_output_path(args.output, (".glb",))
     _check_common(args)
-    if args.uv == "xatlas":
-        raise VoxgiError("--uv xatlas is not available yet; use --uv per-triangle")
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, resolution=args.resolution,
                              cell_size=args.cell_size, radius=args.radius, photons=args.photons, seed=args.seed,
@@ -374,7 +372,8 @@ def build_parser():
     _scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
     p.add_argument("--uv", choices=("per-triangle", "xatlas"), default="per-triangle",
-                   help="lightmap UVs: one square map per triangle (default) or xatlas charts (not yet available)")
+                   help="lightmap UVs: one square map per triangle (default, the thesis's method: deduplicated, "
+                        "quadtree-packed) or xatlas charts over connected triangles")
     p.add_argument("--texel-density", type=float, metavar="D",
                    help="texels per scene unit (default: one texel per voxel cell)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")

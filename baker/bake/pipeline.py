@@ -11,13 +11,13 @@ from ..config import SolverConfig, solver_config, threads
 from ..errors import ConfigError
 from ..stats import Stats
 
-UV_MODES = ("per-triangle",)
+UV_MODES = ("per-triangle", "xatlas")
 
 
 @dataclass(frozen=True)
 class BakeConfig:
     """solver: the voxel solution's settings; uv: 'per-triangle' (the
-    thesis's texture method); texel_density: texels per scene unit (None:
+    thesis's texture method) or 'xatlas' (charts); texel_density: texels per scene unit (None:
     one texel per voxel cell); preset: the name it came from.
 
     Texel values: every tier reconstructs the voxel solution at the texels
@@ -50,7 +50,7 @@ def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = No
 
 
 def _bake(scene, config, stats, progress, bvh, surfaces):
-    from ..lightmap import atlas_for, charts_for, preview_texels, texel_size_for
+    from ..lightmap import atlas_for, layout_for, preview_texels, texel_size_for
     from ..progress import bar
     from ..scene import build_scene_bvh, pack
     from ..solve import solve
@@ -62,7 +62,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     solution = solve(scene, config.solver, stats=stats, bvh=bvh, surfaces=surfaces, progress=progress)
     checkpoint()
     with stats.stage("charts"):
-        charts = charts_for(scene, texel_size_for(solution, config.texel_density))
+        charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
     checkpoint()
     with stats.stage("texels"), bar(1, "texels", "stage", progress) as b:
         texels = preview_texels(scene, solution, bvh, surfaces, charts, config.solver.seed)
@@ -70,9 +70,9 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
     checkpoint()
-    counts = dict(maps.counts, charts=len(charts), texels_covered=int(texels.covered.sum()),
-                  texels_inside=int(texels.inside.sum()), dedup_ratio=round(maps.dedup_ratio, 4),
-                  texel_size=float(charts.texel.min()))
+    counts = dict(maps.counts, charts=int(getattr(charts, "charts", len(charts))),
+                  texels_covered=int(texels.covered.sum()), texels_inside=int(texels.inside.sum()),
+                  dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)))
     stats.count(**counts)
     meta = {"preset": config.preset, "uv": config.uv, "texel_density": config.texel_density,
             "texel_values": "voxel solution (reconstructed at each texel)", "solver": asdict(config.solver),

@@ -124,24 +124,28 @@ def side_normal(corners, t, back):
     return nx * s, ny * s, nz * s
 
 
+CHUNK = 1024  # texels per parallel work item
+
+
 @njit(cache=True, parallel=True)
-def inside_geometry(bvh, double, mat_of, corners, chart_tri, chart_back, offsets, point, covered, offset, reach,
-                    seed):
+def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, covered, offset, reach, seed):
     """(N,) bool: covered texels whose point is hidden inside geometry (at
     least PROBE_BACK of PROBES cosine-distributed rays, started `offset`
     off the surface, first hit the back of a one-sided triangle within
-    `reach`). Stratified directions, rotated per texel by a hash."""
-    total = offsets[-1]
+    `reach`). Stratified directions, rotated per texel by a hash.
+    texel_tri (N,) int32 the triangle a texel samples (-1: none),
+    texel_back (N,) bool its back side."""
+    total = point.shape[0]
     out = np.zeros(total, np.bool_)
     side = int(math.sqrt(PROBES))
-    for c in prange(len(chart_tri)):
+    for ch in prange((total + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        t = chart_tri[c]
-        nx, ny, nz = side_normal(corners, t, chart_back[c])
-        tx, bx = frame(nx, ny, nz)
-        for k in range(offsets[c], offsets[c + 1]):
-            if not covered[k]:
+        for k in range(ch * CHUNK, min(total, (ch + 1) * CHUNK)):
+            t = texel_tri[k]
+            if not covered[k] or t < 0:
                 continue
+            nx, ny, nz = side_normal(corners, t, texel_back[k])
+            tx, bx = frame(nx, ny, nz)
             h = mix64(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(k))
             r1 = float(h >> np.uint64(40)) / 16777216.0
             r2 = float((h >> np.uint64(16)) & np.uint64(0xFFFFFF)) / 16777216.0

@@ -31,7 +31,7 @@ from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import any_hit
 from ..voxels.lookup import voxel_of_hit
 from ..voxels.tolerances import SMOOTH_COS
-from .texels import side_normal
+from .texels import CHUNK, side_normal
 
 PLANE_REACH = 0.5   # cells: neighbour centroids further off p's plane are another surface
 A_MIN = 0.25        # cells^2: voxels smaller than this weigh in proportion to their area
@@ -51,24 +51,25 @@ def _on_side(v, px, py, pz, cell, cut_plane, cut_sign, origin, h):
 
 
 @njit(cache=True, parallel=True)
-def reconstruct(bvh, corners, chart_tri, chart_back, offsets, point, covered, irradiance, vkey, vcell, vcentroid,
-                vnormal, varea, cut_plane, cut_sign, piece_key, piece_voxel, piece_plane, piece_sign, side_start,
-                back_side, origin, h, dims, offset):
-    """H (N, 3) float64 at every covered texel; found (N,) bool (False: no
+def reconstruct(bvh, corners, texel_tri, texel_back, point, covered, irradiance, vkey, vcell, vcentroid, vnormal,
+                varea, cut_plane, cut_sign, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
+                origin, h, dims, offset):
+    """H (N, 3) float64 at every covered texel (sampling triangle
+    texel_tri[k], its back if texel_back[k]); found (N,) bool (False: no
     voxel holds the point's side, the value is 0)."""
-    total = offsets[-1]
+    total = point.shape[0]
     out = np.zeros((total, 3))
     found = np.zeros(total, np.bool_)
     nv = vkey.shape[0]
     a_min = A_MIN * h * h
-    for c in prange(len(chart_tri)):
+    for ch in prange((total + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        t = chart_tri[c]
-        back = chart_back[c]
-        nx, ny, nz = side_normal(corners, t, back)
-        for k in range(offsets[c], offsets[c + 1]):
-            if not covered[k]:
+        for k in range(ch * CHUNK, min(total, (ch + 1) * CHUNK)):
+            t = texel_tri[k]
+            if not covered[k] or t < 0:
                 continue
+            back = texel_back[k]
+            nx, ny, nz = side_normal(corners, t, back)
             px, py, pz = point[k, 0], point[k, 1], point[k, 2]
             home = voxel_of_hit(t, back, px, py, pz, piece_key, piece_voxel, piece_plane, piece_sign, side_start,
                                 back_side, origin, h, dims)
@@ -109,8 +110,13 @@ def reconstruct(bvh, corners, chart_tri, chart_back, offsets, point, covered, ir
                                 if not _on_side(home, vcentroid[v, 0], vcentroid[v, 1], vcentroid[v, 2], vcell,
                                                 cut_plane, cut_sign, origin, h):
                                     continue
-                                dist = math.sqrt(ex * ex + ey * ey + ez * ez)
-                                if dist > 0.0 and any_hit(bvh, stack, ox, oy, oz, ex / dist, ey / dist, ez / dist,
+                                # p lifted along its normal to c_j lifted along its own: the segment stays
+                                # off a convex surface curving between them
+                                fx = ex + offset * (vnormal[v, 0] - nx)
+                                fy = ey + offset * (vnormal[v, 1] - ny)
+                                fz = ez + offset * (vnormal[v, 2] - nz)
+                                dist = math.sqrt(fx * fx + fy * fy + fz * fz)
+                                if dist > 0.0 and any_hit(bvh, stack, ox, oy, oz, fx / dist, fy / dist, fz / dist,
                                                           0.0, dist):
                                     continue
                             w *= min(1.0, varea[v] / a_min)

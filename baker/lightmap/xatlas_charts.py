@@ -1,0 +1,124 @@
+"""Charted lightmap UVs by xatlas (`--uv xatlas`, docs/design.md section 8):
+charts over connected triangles, packed at a texel density (texels per
+scene unit) into 512 x 512 pages, as many as needed, with PADDING texels
+between charts for bilinear filtering. A two-sided triangle's back is
+charted as a triangle of its own (wound the other way).
+
+Texels: each page texel belongs to the triangle whose UV triangle is
+nearest its centre (within COVER texels: the texels bilinear lookups on
+the triangles read); its sample point is that triangle's point nearest the
+centre, nudged inward. The rest of the page is filled from them (dilation
+into the padding).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .atlas import PAGE
+from .texels import COVER, NUDGE, closest_on_triangle
+
+PADDING = 2
+
+
+@dataclass(frozen=True)
+class XatlasLayout:
+    """tri (m,) int32 and back (m,) bool: the charted triangle sides;
+    page (m,) int32; uv (m, 3, 2) float64 the triangle's corners (in the
+    scene's order, backs too) in page texels (0..PAGE, v down); n_pages; texel: scene units per texel; charts: xatlas charts;
+    utilization: mean share of a page's texels the charts cover."""
+    tri: np.ndarray
+    back: np.ndarray
+    page: np.ndarray
+    uv: np.ndarray
+    n_pages: int
+    texel: float
+    charts: int
+    utilization: float
+
+    def __len__(self):
+        return len(self.tri)
+
+
+def xatlas_layout(vertices, triangles, two_sided, texel_size) -> XatlasLayout:
+    """vertices (nv, 3), triangles (nt, 3) (shared corners: charts follow
+    connectivity), two_sided (nt,) bool."""
+    import xatlas
+    corners = vertices[triangles].astype(np.float64)
+    good = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1) > 0
+    front = np.nonzero(good)[0]
+    backs = np.nonzero(good & two_sided)[0]
+    nv = len(vertices)
+    pos = np.concatenate([vertices, vertices]).astype(np.float32)  # backs use the second copy: their own charts
+    faces = np.concatenate([triangles[front], triangles[backs][:, ::-1] + nv]).astype(np.uint32)
+    tri = np.concatenate([front, backs]).astype(np.int32)
+    back = np.concatenate([np.zeros(len(front), bool), np.ones(len(backs), bool)])
+    texel = float(texel_size)
+    for _ in range(16):
+        atlas = xatlas.Atlas()
+        atlas.add_mesh(pos, faces)
+        po = xatlas.PackOptions()
+        po.resolution = PAGE
+        po.texels_per_unit = 1.0 / texel
+        po.padding = PADDING
+        po.bilinear = True
+        atlas.generate(xatlas.ChartOptions(), po)
+        if atlas.width <= PAGE and atlas.height <= PAGE:
+            break
+        texel *= max(atlas.width, atlas.height) / PAGE * 1.05  # a chart too large for a page: coarser texels
+    vmap, idx, uvs = atlas[0]
+    page_of_vertex, _ = atlas.get_mesh_vertex_assignment(0)
+    idx = idx.reshape(-1, 3)
+    uv = uvs[idx].astype(np.float64) * [atlas.width, atlas.height]
+    uv[back] = uv[back][:, [0, 2, 1]]  # backs were charted wound the other way: back to the triangle's order
+    page = page_of_vertex[idx[:, 0]].astype(np.int32)
+    return XatlasLayout(tri, back, page, uv, int(atlas.atlas_count), texel, int(atlas.chart_count),
+                        float(atlas.utilization if np.isscalar(atlas.utilization) else np.mean(atlas.utilization)))
+
+
+@njit(cache=True)
+def _rasterize(uv, page, n_pages, size):
+    """Per texel of every page: the face nearest its centre within COVER
+    (-1: none) and the barycentrics of that face's point nearest it."""
+    n = n_pages * size * size
+    face = np.full(n, -1, np.int32)
+    best = np.full(n, np.inf)
+    bary = np.zeros((n, 3))
+    for f in range(uv.shape[0]):
+        q = uv[f]
+        x0 = max(0, int(np.floor(min(q[0, 0], q[1, 0], q[2, 0]) - COVER)))
+        x1 = min(size - 1, int(np.ceil(max(q[0, 0], q[1, 0], q[2, 0]) + COVER)))
+        y0 = max(0, int(np.floor(min(q[0, 1], q[1, 1], q[2, 1]) - COVER)))
+        y1 = min(size - 1, int(np.ceil(max(q[0, 1], q[1, 1], q[2, 1]) + COVER)))
+        base = page[f] * size * size
+        for j in range(y0, y1 + 1):
+            for i in range(x0, x1 + 1):
+                px, py = i + 0.5, j + 0.5
+                wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
+                dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
+                dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
+                d = dx * dx + dy * dy
+                k = base + j * size + i
+                if d <= COVER * COVER and d < best[k]:
+                    best[k] = d
+                    face[k] = f
+                    bary[k, 0], bary[k, 1], bary[k, 2] = wa, wb, wc
+    return face, bary
+
+
+def xatlas_texels(layout: XatlasLayout, corners):
+    """Sample points (N, 3), covered (N,), texel_tri (N,) int32, texel_back
+    (N,) bool of every texel of every page (page-major, row-major)."""
+    face, bary = _rasterize(layout.uv, layout.page, layout.n_pages, PAGE)
+    covered = face >= 0
+    third = 1.0 / 3.0
+    bary = bary + (third - bary) * NUDGE  # inward, never exactly on an edge
+    f = np.where(covered, face, 0)
+    tri = layout.tri[f]
+    c = corners[tri]
+    point = np.einsum("nk,nkc->nc", bary, c)
+    texel_tri = np.where(covered, tri, -1).astype(np.int32)
+    texel_back = np.where(covered, layout.back[f], False)
+    return point, covered, texel_tri, texel_back
