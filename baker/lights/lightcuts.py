@@ -1,0 +1,274 @@
+"""Lightcuts (Walter et al. 2005; docs/design.md section 7): the irradiance
+at a shading point p (normal n) from the VPLs of a light tree, by a cut
+through the tree chosen so that every node's error bound is below epsilon
+times the estimate.
+
+    estimate(node) = power(node) x g(rep(node)),  g = V cos_l cos_p / (pi r^2 + A)  (area VPLs)
+                                                   g = V cos_p                       (sky directions)
+    bound(node)    = lum(node) x cos_l_ub x cos_p_ub / (pi r_lb^2)   (area; infinite when p is in the box)
+                   = lum(node) x cos_p_ub                              (directions)
+
+Start with the root; repeatedly refine the node with the largest bound (a
+max-heap) while it exceeds epsilon x the estimate's luminance and the cut
+is below the cap; leaves are exact. One shadow ray per new representative:
+the child that keeps its parent's representative keeps its g.
+`brute_force` sums every VPL with the same g (the reference, and the
+speed-up's denominator).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.traverse import any_hit
+from ..scene.surfaces import punctual_irradiance
+from .vpl import KIND_DIRECTIONAL
+
+SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of an area VPL (it lies on a surface)
+
+
+@njit(cache=True, inline="always")
+def vpl_g(bvh, stack, kind, position, normal, area, v, px, py, pz, nx, ny, nz, offset, shadows):
+    """The geometric factor of VPL v at p (visibility included when
+    `shadows`): irradiance = power(v) x g."""
+    if kind[v] == KIND_DIRECTIONAL:
+        dx, dy, dz = normal[v, 0], normal[v, 1], normal[v, 2]
+        cp = nx * dx + ny * dy + nz * dz
+        if cp <= 0.0:
+            return 0.0
+        if shadows and any_hit(bvh, stack, px + offset * nx, py + offset * ny, pz + offset * nz, dx, dy, dz, 0.0,
+                               np.inf):
+            return 0.0
+        return cp
+    dx, dy, dz = position[v, 0] - px, position[v, 1] - py, position[v, 2] - pz
+    r2 = dx * dx + dy * dy + dz * dz
+    if r2 <= 0.0:
+        return 0.0
+    r = math.sqrt(r2)
+    dx, dy, dz = dx / r, dy / r, dz / r
+    cp = nx * dx + ny * dy + nz * dz
+    cl = -(normal[v, 0] * dx + normal[v, 1] * dy + normal[v, 2] * dz)
+    if cp <= 0.0 or cl <= 0.0:
+        return 0.0
+    if shadows:
+        ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
+        ex, ey, ez = position[v, 0] - ox, position[v, 1] - oy, position[v, 2] - oz
+        d = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if any_hit(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d * (1.0 - SHADOW_EPS)):
+            return 0.0
+    return cl * cp / (math.pi * r2 + area[v])
+
+
+@njit(cache=True, inline="always")
+def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node, px, py, pz, nx, ny, nz):
+    """Upper bound of the luminance the node's VPLs give p (no visibility)."""
+    lum = tree_lum[node]
+    if lum <= 0.0:
+        return 0.0
+    if tree_kind[node] == KIND_DIRECTIONAL:
+        # cos_p over the cone of directions: cos(max(0, angle(n, axis) - half angle))
+        d = min(1.0, max(-1.0, nx * tree_axis[node, 0] + ny * tree_axis[node, 1] + nz * tree_axis[node, 2]))
+        c = tree_cos[node]
+        if c <= -1.0:
+            return lum
+        a = math.acos(d) - math.acos(min(1.0, max(-1.0, c)))
+        return lum if a <= 0.0 else (lum * math.cos(a) if a < 0.5 * math.pi else 0.0)
+    # distance from p to the box
+    d2 = 0.0
+    for c in range(3):
+        q = (px, py, pz)[c]
+        lo, hi = tree_lo[node, c], tree_hi[node, c]
+        e = lo - q if q < lo else (q - hi if q > hi else 0.0)
+        d2 += e * e
+    if d2 <= 0.0:
+        return np.inf
+    # cos_p: the box in p's frame (t, b, n); z the height above p's plane
+    zmax = -np.inf
+    for k in range(8):
+        cx = tree_hi[node, 0] if k & 1 else tree_lo[node, 0]
+        cy = tree_hi[node, 1] if k & 2 else tree_lo[node, 1]
+        cz = tree_hi[node, 2] if k & 4 else tree_lo[node, 2]
+        zmax = max(zmax, (cx - px) * nx + (cy - py) * ny + (cz - pz) * nz)
+    if zmax <= 0.0:
+        return 0.0
+    cos_p = min(1.0, zmax / math.sqrt(d2)) if zmax * zmax < d2 else 1.0
+    # cos_l: the light cone against the directions from the box to p
+    cos_l = 1.0
+    c = tree_cos[node]
+    if c > -1.0:
+        mx = 0.5 * (tree_lo[node, 0] + tree_hi[node, 0])
+        my = 0.5 * (tree_lo[node, 1] + tree_hi[node, 1])
+        mz = 0.5 * (tree_lo[node, 2] + tree_hi[node, 2])
+        wx, wy, wz = px - mx, py - my, pz - mz
+        dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+        hx = 0.5 * (tree_hi[node, 0] - tree_lo[node, 0])
+        hy = 0.5 * (tree_hi[node, 1] - tree_lo[node, 1])
+        hz = 0.5 * (tree_hi[node, 2] - tree_lo[node, 2])
+        rad = math.sqrt(hx * hx + hy * hy + hz * hz)
+        if dist > rad:
+            dot = (wx * tree_axis[node, 0] + wy * tree_axis[node, 1] + wz * tree_axis[node, 2]) / dist
+            ang = math.acos(min(1.0, max(-1.0, dot))) - math.asin(rad / dist) - math.acos(min(1.0, max(-1.0, c)))
+            if ang >= 0.5 * math.pi:
+                return 0.0
+            if ang > 0.0:
+                cos_l = math.cos(ang)
+    return lum * cos_l * cos_p / (math.pi * d2)
+
+
+@njit(cache=True, inline="always")
+def _swap(heap_b, heap_n, heap_g, i, j):
+    heap_b[i], heap_b[j] = heap_b[j], heap_b[i]
+    heap_n[i], heap_n[j] = heap_n[j], heap_n[i]
+    heap_g[i], heap_g[j] = heap_g[j], heap_g[i]
+
+
+@njit(cache=True)
+def _push(heap_b, heap_n, heap_g, size, b, node, g):
+    i = size
+    heap_b[i], heap_n[i], heap_g[i] = b, node, g
+    while i > 0:
+        p = (i - 1) // 2
+        if heap_b[p] >= heap_b[i]:
+            break
+        _swap(heap_b, heap_n, heap_g, p, i)
+        i = p
+    return size + 1
+
+
+@njit(cache=True)
+def _pop(heap_b, heap_n, heap_g, size):
+    node, g = heap_n[0], heap_g[0]
+    size -= 1
+    _swap(heap_b, heap_n, heap_g, 0, size)
+    i = 0
+    while True:
+        l, r, m = 2 * i + 1, 2 * i + 2, i
+        if l < size and heap_b[l] > heap_b[m]:
+            m = l
+        if r < size and heap_b[r] > heap_b[m]:
+            m = r
+        if m == i:
+            break
+        _swap(heap_b, heap_n, heap_g, m, i)
+        i = m
+    return node, g, size
+
+
+def scratch(cap):
+    """Per-thread scratch of a lightcut: a heap of at most cap + 2 nodes."""
+    return np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty(cap + 2)
+
+
+@njit(cache=True)
+def lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree_lum, tree_rep, tree_right,
+             tree_kind, kind, position, normal, area, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n,
+             heap_g):
+    """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
+    shadow rays cast. heap_b, heap_n, heap_g: scratch of cap + 2 entries
+    (the cut's refinable nodes with their bound and representative's g)."""
+    root = 0
+    g = vpl_g(bvh, stack, kind, position, normal, area, tree_rep[root], px, py, pz, nx, ny, nz, offset, True)
+    rays = 1
+    e0 = tree_power[root, 0] * g
+    e1 = tree_power[root, 1] * g
+    e2 = tree_power[root, 2] * g
+    size = 0
+    cut = 1
+    if tree_right[root] >= 0:
+        b = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, root, px, py, pz, nx, ny, nz)
+        if b > 0.0:
+            size = _push(heap_b, heap_n, heap_g, size, b, root, g)
+    while size > 0:
+        est = 0.2126 * e0 + 0.7152 * e1 + 0.0722 * e2
+        if heap_b[0] <= epsilon * est or cut >= cap:
+            break
+        node, g, size = _pop(heap_b, heap_n, heap_g, size)
+        e0 -= tree_power[node, 0] * g
+        e1 -= tree_power[node, 1] * g
+        e2 -= tree_power[node, 2] * g
+        cut -= 1
+        for child in (node + 1, tree_right[node]):
+            if tree_rep[child] == tree_rep[node]:
+                gc = g
+            else:
+                gc = vpl_g(bvh, stack, kind, position, normal, area, tree_rep[child], px, py, pz, nx, ny, nz, offset,
+                           True)
+                rays += 1
+            e0 += tree_power[child, 0] * gc
+            e1 += tree_power[child, 1] * gc
+            e2 += tree_power[child, 2] * gc
+            cut += 1
+            if tree_right[child] >= 0:
+                bc = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, child, px, py, pz, nx,
+                                ny, nz)
+                if bc > 0.0:
+                    size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
+    return max(e0, 0.0), max(e1, 0.0), max(e2, 0.0), cut, rays
+
+
+@njit(cache=True)
+def brute_force(bvh, stack, kind, position, normal, area, power, px, py, pz, nx, ny, nz, offset):
+    """Irradiance (r, g, b) at p: every VPL, with visibility."""
+    h0 = h1 = h2 = 0.0
+    for v in range(kind.shape[0]):
+        g = vpl_g(bvh, stack, kind, position, normal, area, v, px, py, pz, nx, ny, nz, offset, True)
+        h0 += power[v, 0] * g
+        h1 += power[v, 1] * g
+        h2 += power[v, 2] * g
+    return h0, h1, h2
+
+
+CHUNK = 64  # shading points per parallel work item
+
+
+@njit(cache=True, parallel=True)
+def shade_points(bvh, surf, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree_lum, tree_rep, tree_right,
+                 tree_kind, kind, position, normal, area, power, points, normals, valid, offset, epsilon, cap,
+                 brute):
+    """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
+    (where valid): lightcuts over the tree (brute: every VPL) plus the
+    scene's punctual lights, exact; cut size (N,) and shadow rays (N,)."""
+    n = points.shape[0]
+    out = np.zeros((n, 3))
+    cuts = np.zeros(n, np.int64)
+    rays = np.zeros(n, np.int64)
+    n_lights = surf.light_kind.shape[0]
+    for ch in prange((n + CHUNK - 1) // CHUNK):
+        stack = np.empty(STACK_SIZE, np.int32)
+        heap_b = np.empty(cap + 2)
+        heap_n = np.empty(cap + 2, np.int64)
+        heap_g = np.empty(cap + 2)
+        for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
+            if not valid[k]:
+                continue
+            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+            nx, ny, nz = normals[k, 0], normals[k, 1], normals[k, 2]
+            h0 = h1 = h2 = 0.0
+            if kind.shape[0] > 0:
+                if brute:
+                    h0, h1, h2 = brute_force(bvh, stack, kind, position, normal, area, power, px, py, pz, nx, ny, nz,
+                                             offset)
+                    cuts[k] = kind.shape[0]
+                    rays[k] = kind.shape[0]
+                else:
+                    h0, h1, h2, c, r = lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power,
+                                                tree_lum, tree_rep, tree_right, tree_kind, kind, position, normal,
+                                                area, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n,
+                                                heap_g)
+                    cuts[k] = c
+                    rays[k] = r
+            for i in range(n_lights):
+                lr, lg, lb, dx, dy, dz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)
+                if lr + lg + lb <= 0.0:
+                    continue
+                rays[k] += 1
+                ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
+                if not any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - SHADOW_EPS)):
+                    h0 += lr
+                    h1 += lg
+                    h2 += lb
+            out[k, 0], out[k, 1], out[k, 2] = h0, h1, h2
+    return out, cuts, rays

@@ -1,0 +1,235 @@
+"""The light tree (docs/design.md section 7, after Walter et al. 2005): a
+binary tree over the VPLs, built top-down in O(n log n) from flat arrays,
+stored depth-first (a node's left child is the next node).
+
+Split: each node's VPLs as 6D points (position, and the normal scaled by
+an eighth of the scene's diagonal, so that a node of opposite-facing lights
+splits by facing), cut in two halves of equal count on the axis of
+largest extent, found by a 64-bin histogram (no sort: linear per level).
+Area VPLs and sky directions get subtrees of their own under the root.
+
+Per node: position bounds (lo, hi); normal cone (axis, cos of its half
+angle); power (sum of its leaves', per channel) and its luminance;
+representative: a leaf of its subtree drawn in proportion to luminance
+(from the children's representatives, seeded per node: the child holding
+it keeps it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..kernels.rng import mix64
+from .vpl import KIND_AREA, KIND_DIRECTIONAL
+
+LUM = np.array([0.2126, 0.7152, 0.0722])
+BINS = 64
+NORMAL_WEIGHT = 0.125  # normals count as positions this fraction of the scene's diagonal apart
+
+
+@dataclass(frozen=True)
+class LightTree:
+    """Nodes depth-first: lo, hi (m, 3); axis (m, 3), cos (m,) the normal
+    cone; power (m, 3); lum (m,); rep (m,) int64 VPL index; right (m,)
+    int64 (the left child is node + 1; -1: a leaf, whose VPL is rep); kind
+    (m,) int8 of the node's VPLs (root: -1 when it joins two kinds)."""
+    lo: np.ndarray
+    hi: np.ndarray
+    axis: np.ndarray
+    cos: np.ndarray
+    power: np.ndarray
+    lum: np.ndarray
+    rep: np.ndarray
+    right: np.ndarray
+    kind: np.ndarray
+
+    def __len__(self):
+        return len(self.lum)
+
+    @property
+    def depth(self) -> int:
+        return int(_depth(self.right))
+
+
+@njit(cache=True)
+def _depth(right):
+    best = 0
+    stack = [(0, 1)]
+    while len(stack):
+        node, d = stack.pop()
+        best = max(best, d)
+        if right[node] >= 0:
+            stack.append((node + 1, d + 1))
+            stack.append((right[node], d + 1))
+    return best
+
+
+@njit(cache=True)
+def _topology(points, order):
+    """Depth-first nodes over points (n, 6) by balanced splits: returns
+    right (m,) and the VPL range of each node in `order` (permuted in
+    place): start (m,), count (m,)."""
+    n = points.shape[0]
+    m = 2 * n - 1
+    right = np.full(m, -1, np.int64)
+    start = np.zeros(m, np.int64)
+    count = np.zeros(m, np.int64)
+    hist = np.zeros(BINS, np.int64)
+    # explicit stack of (node, a, b); nodes are numbered in preorder as they are created
+    stack_node = np.empty(64 + 2 * 64, np.int64)
+    stack_a = np.empty_like(stack_node)
+    stack_b = np.empty_like(stack_node)
+    stack_node[0], stack_a[0], stack_b[0] = 0, 0, n
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node, a, b = stack_node[sp], stack_a[sp], stack_b[sp]
+        start[node], count[node] = a, b - a
+        if b - a == 1:
+            continue
+        # axis of largest extent
+        best_axis, best_ext, lo_v = 0, -1.0, 0.0
+        for ax in range(6):
+            lo, hi = np.inf, -np.inf
+            for i in range(a, b):
+                v = points[order[i], ax]
+                lo = min(lo, v)
+                hi = max(hi, v)
+            if hi - lo > best_ext:
+                best_axis, best_ext, lo_v = ax, hi - lo, lo
+        mid = (a + b) // 2
+        if best_ext > 0.0:
+            # the bin holding the median, then a partition at that bin's edge; a split the bins cannot make
+            # (most points in one bin) falls back to a partition by rank below
+            hist[:] = 0
+            scale = BINS / best_ext
+            for i in range(a, b):
+                k = min(BINS - 1, int((points[order[i], best_axis] - lo_v) * scale))
+                hist[k] += 1
+            acc, cut = 0, BINS - 1
+            for k in range(BINS):
+                acc += hist[k]
+                if acc >= (b - a) // 2:
+                    cut = k
+                    break
+            edge = lo_v + (cut + 1) / scale
+            i, j = a, b - 1
+            while i <= j:
+                if points[order[i], best_axis] < edge:
+                    i += 1
+                else:
+                    order[i], order[j] = order[j], order[i]
+                    j -= 1
+            if a < i < b and abs((i - a) - (b - i)) <= (b - a) // 2:
+                mid = i
+            else:
+                seg = order[a:b]
+                keys = points[seg, best_axis]
+                order[a:b] = seg[np.argsort(keys, kind="mergesort")]
+        left = node + 1                 # preorder: the left subtree's 2 (mid - a) - 1 nodes, then the right's
+        rgt = node + 2 * (mid - a)
+        right[node] = rgt
+        if sp + 2 > stack_node.shape[0]:
+            stack_node = np.concatenate((stack_node, np.empty_like(stack_node)))
+            stack_a = np.concatenate((stack_a, np.empty_like(stack_a)))
+            stack_b = np.concatenate((stack_b, np.empty_like(stack_b)))
+        stack_node[sp], stack_a[sp], stack_b[sp] = rgt, mid, b
+        stack_node[sp + 1], stack_a[sp + 1], stack_b[sp + 1] = left, a, mid
+        sp += 2
+    return right, start, count
+
+
+@njit(cache=True)
+def _attributes(right, start, count, order, position, normal, power, lum_w, seed, base):
+    m = right.shape[0]
+    lo = np.empty((m, 3))
+    hi = np.empty((m, 3))
+    axis = np.empty((m, 3))
+    cosv = np.empty(m)
+    pw = np.empty((m, 3))
+    lum = np.empty(m)
+    rep = np.empty(m, np.int64)
+    for node in range(m - 1, -1, -1):  # children come after their parent
+        if right[node] < 0:
+            v = order[start[node]]
+            for c in range(3):
+                lo[node, c] = position[v, c]
+                hi[node, c] = position[v, c]
+                axis[node, c] = normal[v, c]
+                pw[node, c] = power[v, c]
+            cosv[node] = 1.0
+            lum[node] = lum_w[0] * power[v, 0] + lum_w[1] * power[v, 1] + lum_w[2] * power[v, 2]
+            rep[node] = v
+            continue
+        l, r = node + 1, right[node]
+        for c in range(3):
+            lo[node, c] = min(lo[l, c], lo[r, c])
+            hi[node, c] = max(hi[l, c], hi[r, c])
+            pw[node, c] = pw[l, c] + pw[r, c]
+        lum[node] = lum[l] + lum[r]
+        # the cone holding both children's cones
+        ax = axis[l, 0] * lum[l] + axis[r, 0] * lum[r] + 1e-300
+        ay = axis[l, 1] * lum[l] + axis[r, 1] * lum[r]
+        az = axis[l, 2] * lum[l] + axis[r, 2] * lum[r]
+        ln = math.sqrt(ax * ax + ay * ay + az * az)
+        if ln < 1e-12:
+            ax, ay, az, ln = axis[l, 0], axis[l, 1], axis[l, 2], 1.0
+        ax, ay, az = ax / ln, ay / ln, az / ln
+        half = 0.0
+        for ch in (l, r):
+            d = min(1.0, max(-1.0, ax * axis[ch, 0] + ay * axis[ch, 1] + az * axis[ch, 2]))
+            half = max(half, math.acos(d) + math.acos(min(1.0, max(-1.0, cosv[ch]))))
+        axis[node, 0], axis[node, 1], axis[node, 2] = ax, ay, az
+        cosv[node] = math.cos(half) if half < math.pi else -1.0
+        # representative: the left's with probability lum_l / lum
+        h = mix64(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(base + node))
+        u = float(h >> np.uint64(11)) / 9007199254740992.0
+        rep[node] = rep[l] if (lum[node] > 0.0 and u * lum[node] < lum[l]) or lum[node] <= 0.0 else rep[r]
+    return lo, hi, axis, cosv, pw, lum, rep
+
+
+def _subtree(vpls, index, seed, base, diag):
+    pos = vpls.position[index]
+    nor = vpls.normal[index]
+    pts = np.concatenate([pos, nor * (NORMAL_WEIGHT * diag)], axis=1)
+    if vpls.kind[index[0]] == KIND_DIRECTIONAL:
+        pts[:, :3] = 0.0  # directions at infinity: split by direction only
+    order = np.arange(len(index), dtype=np.int64)
+    right, start, count = _topology(pts, order)
+    lo, hi, axis, cosv, pw, lum, rep = _attributes(right, start, count, order, pos, nor, vpls.power[index], LUM,
+                                                   seed, base)
+    return lo, hi, axis, cosv, pw, lum, index[rep], right
+
+
+def build_tree(vpls, seed=0) -> LightTree:
+    """The light tree of `vpls` (at least one)."""
+    parts = []
+    diag = 1.0
+    area = np.nonzero(vpls.kind == KIND_AREA)[0]
+    if len(area):
+        diag = float(np.linalg.norm(np.ptp(vpls.position[area], axis=0))) or 1.0
+    for kind in (KIND_AREA, KIND_DIRECTIONAL):
+        idx = np.nonzero(vpls.kind == kind)[0].astype(np.int64)
+        if len(idx):
+            parts.append((kind, _subtree(vpls, idx, seed, 0 if kind == KIND_AREA else 1 << 40, diag)))
+    if not parts:
+        raise ValueError("no VPLs to build a light tree over")
+    if len(parts) == 1:
+        kind, (lo, hi, axis, cosv, pw, lum, rep, right) = parts[0]
+        return LightTree(lo, hi, axis, cosv, pw, lum, rep, right, np.full(len(lum), kind, np.int8))
+    (k0, a), (k1, b) = parts
+    n0 = len(a[5])
+    root_lum = a[5][0] + b[5][0]
+    h = int(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) % np.uint64(1 << 53)) / float(1 << 53)
+    root = (np.minimum(a[0][0], b[0][0]), np.maximum(a[1][0], b[1][0]), np.array([0.0, 1.0, 0.0]), -1.0,
+            a[4][0] + b[4][0], root_lum, a[6][0] if h * root_lum < a[5][0] else b[6][0])
+    right_a = np.where(a[7] >= 0, a[7] + 1, -1)
+    right_b = np.where(b[7] >= 0, b[7] + 1 + n0, -1)
+    cat = lambda r, x, y: np.concatenate([np.asarray(r)[None], x, y])  # noqa: E731
+    return LightTree(cat(root[0], a[0], b[0]), cat(root[1], a[1], b[1]), cat(root[2], a[2], b[2]),
+                     cat(root[3], a[3], b[3]), cat(root[4], a[4], b[4]), cat(root[5], a[5], b[5]),
+                     cat(root[6], a[6], b[6]), np.concatenate([[1 + n0], right_a, right_b]),
+                     np.concatenate([[-1], np.full(n0, k0), np.full(len(b[5]), k1)]).astype(np.int8))

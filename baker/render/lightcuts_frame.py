@@ -1,0 +1,142 @@
+"""Quality frames (docs/design.md section 7): primary rays from the camera,
+lightcuts at the visible points, adaptive anti-aliasing.
+
+Pass 1 shoots one ray through each pixel's centre and records what it hit
+(material, normal, depth). Pixels whose 4-neighbours differ from them (an
+edge: another material, a normal more than ~25 degrees off, a depth more
+than 5% off, or background) take 16 samples on a fixed 4 x 4 pattern
+instead; the others keep their one. All shading points go through
+lightcuts in one batch:
+
+    L = albedo / pi * H + L_e      (the back of a one-sided surface: black;
+                                    no hit: the sky's radiance, if any)
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.traverse import closest_hit, hit_normal
+from ..scene.surfaces import albedo_at, sky_radiance
+from .camera import primary_ray
+
+AA = 4                 # the edge pixels' pattern: AA x AA
+NORMAL_COS = 0.9
+DEPTH_REL = 0.05
+BATCH = 1 << 16        # shading points per lightcuts call (progress and Ctrl-C between calls)
+
+
+@njit(cache=True, parallel=True)
+def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
+    """One camera ray per sample (pixel pix[i], sub-sample sub[i] of a
+    per_axis^2 pattern; per_axis 1: the centre): the shading point (n, 3),
+    its normal towards the camera (n, 3), what it adds before lighting
+    (emission or sky, (n, 3)), albedo (n, 3), shade (n,) bool, material
+    (n,) int32 (-1: background, -2: a one-sided back), depth (n,)."""
+    n = pix.shape[0]
+    point = np.zeros((n, 3))
+    normal = np.zeros((n, 3))
+    base = np.zeros((n, 3))
+    albedo = np.zeros((n, 3))
+    shade = np.zeros(n, np.bool_)
+    mat = np.full(n, -1, np.int32)
+    depth = np.full(n, np.inf)
+    for i in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
+        x, y = pix[i] % width, pix[i] // width
+        fx = (sub[i] % per_axis + 0.5) / per_axis
+        fy = (sub[i] // per_axis + 0.5) / per_axis
+        ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
+        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        if j < 0:
+            base[i, 0], base[i, 1], base[i, 2] = sky_radiance(surf, dx, dy, dz)
+            continue
+        tri = bvh.tri_index[j]
+        m = surf.tri_material[tri]
+        nx, ny, nz = hit_normal(bvh, j)
+        depth[i] = t
+        if nx * dx + ny * dy + nz * dz > 0.0:
+            if not surf.double_sided[m]:
+                mat[i] = -2
+                continue
+            nx, ny, nz = -nx, -ny, -nz
+        mat[i] = m
+        point[i, 0], point[i, 1], point[i, 2] = ox + t * dx, oy + t * dy, oz + t * dz
+        normal[i, 0], normal[i, 1], normal[i, 2] = nx, ny, nz
+        base[i, 0], base[i, 1], base[i, 2] = surf.emission[m, 0], surf.emission[m, 1], surf.emission[m, 2]
+        albedo[i, 0], albedo[i, 1], albedo[i, 2] = albedo_at(surf, tri, u, v)
+        shade[i] = True
+    return point, normal, base, albedo, shade, mat, depth
+
+
+@njit(cache=True)
+def edge_pixels(mat, normal, depth, width, height):
+    """(h * w,) bool: pixels whose 4-neighbours differ (material, normal,
+    depth)."""
+    out = np.zeros(width * height, np.bool_)
+    for y in range(height):
+        for x in range(width):
+            k = y * width + x
+            for e in range(4):
+                xx = x + (1 if e == 0 else (-1 if e == 1 else 0))
+                yy = y + (1 if e == 2 else (-1 if e == 3 else 0))
+                if xx < 0 or yy < 0 or xx >= width or yy >= height:
+                    continue
+                q = yy * width + xx
+                if mat[k] != mat[q]:
+                    out[k] = True
+                elif mat[k] >= 0:
+                    c = normal[k, 0] * normal[q, 0] + normal[k, 1] * normal[q, 1] + normal[k, 2] * normal[q, 2]
+                    if c < NORMAL_COS or abs(depth[k] - depth[q]) > DEPTH_REL * min(depth[k], depth[q]):
+                        out[k] = True
+    return out
+
+
+def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
+                     brute=False, aa=True):
+    """Linear radiance image (height, width, 3) float32 and statistics
+    (cut sizes, shadow rays, edge pixels)."""
+    from ..lights import irradiance
+    from ..startup import checkpoint
+    n = width * height
+    eps = 1e-5 * surfaces.scale
+    pix = np.arange(n, dtype=np.int64)
+    first = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, pix, np.zeros(n, np.int64), 1, eps)
+    edges = edge_pixels(first[5], first[1], first[3 + 3], width, height) if aa else np.zeros(n, bool)
+    e = np.nonzero(edges)[0]
+    if len(e):
+        epix = np.repeat(e, AA * AA)
+        esub = np.tile(np.arange(AA * AA), len(e))
+        second = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, epix, esub, AA, eps)
+        keep = ~edges
+        samples = [np.concatenate([a[keep], b]) for a, b in zip(first, second)]
+        owner = np.concatenate([pix[keep], epix])
+        weight = np.concatenate([np.ones(int(keep.sum())), np.full(len(epix), 1.0 / (AA * AA))])
+    else:
+        samples, owner, weight = list(first), pix, np.ones(n)
+    point, normal, base, albedo, shade = samples[:5]
+    h = np.zeros((len(point), 3))
+    cuts = np.zeros(len(point), np.int64)
+    rays = np.zeros(len(point), np.int64)
+    for a in range(0, len(point), BATCH):
+        s = slice(a, a + BATCH)
+        h[s], cuts[s], rays[s] = irradiance(lights, bvh, surfaces, point[s], normal[s], shade[s], eps, epsilon, cap,
+                                            brute)
+        checkpoint()
+        if progress is not None:
+            progress(min(BATCH, len(point) - a))
+    radiance = base + albedo / math.pi * h
+    image = np.zeros((n, 3))
+    np.add.at(image, owner, radiance * weight[:, None])
+    shaded = shade.sum()
+    stats = {"shading_points": int(len(point)), "edge_pixels": int(len(e)),
+             "cut_mean": float(cuts[shade].mean()) if shaded else 0.0, "cut_max": int(cuts.max(initial=0)),
+             "shadow_rays": int(rays.sum()), "shadow_rays_per_pixel": float(rays.sum() / n)}
+    return image.reshape(height, width, 3).astype(np.float32), stats
+
+
+def shading_points_estimate(width, height):
+    return width * height
