@@ -134,6 +134,16 @@ def _render_config(args):
                           max_bounces=args.max_bounces)
 
 
+def _lightcuts_config(args):
+    from .errors import ConfigError
+    from .lights import lightcuts_config
+    try:
+        return lightcuts_config(args.preset, epsilon=getattr(args, "epsilon", None),
+                                direct_vpls=getattr(args, "direct_vpls", None), seed=getattr(args, "seed", None))
+    except ConfigError as e:
+        raise ConfigError(f"invalid lightcuts setting: {e}") from None
+
+
 def cmd_render(args):
     from .config import threads
     from .fileio import check_output_path
@@ -148,7 +158,7 @@ def cmd_render(args):
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
     if args.spp < 1:
         raise VoxgiError(f"--spp must be at least 1 (got {args.spp})")
-    config = _render_config(args) if args.method == "voxels" else None
+    config = _render_config(args) if args.method in ("voxels", "lightcuts") else None
     stats = Stats("render " + args.method)
     with threads(args.threads):
         with stats.stage("load"):
@@ -169,6 +179,24 @@ def cmd_render(args):
             from .bake.shade import render_bake
             with stats.stage("lightmap_view"), bar(args.height, "lightmap view", "row") as b:
                 image = render_bake(bake, camera, args.width, args.height, b.update, tree)
+        elif args.method == "lightcuts":
+            from .lights import build_lights
+            from .render.lightcuts_frame import render_lightcuts
+            from .solve import solve
+            solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
+            lc = _lightcuts_config(args)
+            with stats.stage("lights"):
+                lights = build_lights(scene, solution, surf, lc)
+            stats.count(**lights.vpls.counts())
+            n_pts = args.width * args.height
+            with stats.stage("lightcuts_frame"), bar(n_pts, "lightcuts", "point") as b:
+                image, fstats = render_lightcuts(tree, surf, lights, cam, args.width, args.height, lc.epsilon,
+                                                 lc.cap, b.update)
+            stats.count(**fstats, epsilon=lc.epsilon, cut_cap=lc.cap)
+            print(f"{solution.summary()}\nVPLs {len(lights.vpls)} ({lights.vpls.counts()['vpls_direct']} direct, "
+                  f"{lights.vpls.counts()['vpls_indirect']} indirect, {lights.vpls.counts()['vpls_sky']} sky)  "
+                  f"cut mean {fstats['cut_mean']:.0f} max {fstats['cut_max']}  shadow rays/pixel "
+                  f"{fstats['shadow_rays_per_pixel']:.0f}", file=sys.stderr)
         elif args.method == "pathtrace":
             from .render.pathtrace import render_pathtrace
             with stats.stage("pathtrace"), bar(args.height, f"path tracing {args.spp} spp", "row") as b:
@@ -200,7 +228,10 @@ def bake_summary(stats, bake) -> str:
             ("directions per bounce", " ".join(str(d) for d in c.get("directions_per_bounce", [])) or "-"),
             ("photons", f"{c.get('photons', 0):,} ({c.get('photons_landed', 0):,} landed)"),
             ("bounces", f"{c.get('bounces', 0)} ({c.get('stop_reason', '')})"),
-            ("VPLs / average cut", "- (texel values from the voxel solution; lightcuts not used)"),
+            ("VPLs / average cut", f"{c['vpls']:,} ({c['vpls_direct']:,} direct, {c['vpls_indirect']:,} indirect, "
+                                   f"{c['vpls_sky']:,} sky) / cut mean {c['cut_mean']:.0f}, max {c['cut_max']}, "
+                                   f"{c['shadow_rays']:,} shadow rays" if "vpls" in c else
+             "- (preview: texel values from the voxel solution)"),
             ("texels", f"{c.get('texels', 0):,} in {c.get('charts', 0):,} maps ({c.get('texels_covered', 0):,} "
                        f"sampled, {c.get('texels_inside', 0):,} inside geometry)"),
             ("maps stored", f"{c.get('unique', 0):,} ({c.get('constant', 0):,} single-colour, dedup ratio "
@@ -226,7 +257,8 @@ def cmd_bake(args):
     check_output_path(args.output, (".glb",))
     _check_common(args)
     try:
-        config = bake_config(args.preset, args.uv, args.texel_density, resolution=args.resolution,
+        config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
+                             resolution=args.resolution,
                              cell_size=args.cell_size, radius=args.radius, photons=args.photons, seed=args.seed,
                              threads=args.threads, memory_budget_mb=args.memory_budget, schedule=args.schedule,
                              tolerance=args.tolerance, max_bounces=args.max_bounces)
@@ -311,6 +343,9 @@ def _solver_args(p):
     g.add_argument("--tolerance", type=float, help="stop when new light < tolerance x first bounce")
     g.add_argument("--max-bounces", type=int, help="bounce cap")
     g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")
+    g = p.add_argument_group("lightcuts (render --method lightcuts; bake --preset default/high)")
+    g.add_argument("--epsilon", type=float, help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01)")
+    g.add_argument("--direct-vpls", type=int, help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
 
 
 def build_parser():
@@ -340,13 +375,15 @@ def build_parser():
                                    "             the yardstick for the other methods\n"
                                    "  voxels     the voxel GI solution shown directly: each visible point takes\n"
                                    "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n"
+                                   "  lightcuts  the quality frame: the voxel solution as virtual point lights,\n"
+                                   "             shaded by lightcuts (edge pixels anti-aliased 4x4)\n"
                                    "  lightmap   a bake file (`voxbake bake`) as a viewer shows it: albedo x\n"
                                    "             lightmap irradiance / pi + emission (give the .glb as SCENE)\n\n"
                                    "EXR output is linear radiance (W m^-2 sr^-1); PNG is exposure-adjusted,\n"
                                    "ACES-filmic tone-mapped sRGB.")
     _scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
-    p.add_argument("--method", choices=("pathtrace", "voxels", "lightmap"), default="pathtrace",
+    p.add_argument("--method", choices=("pathtrace", "voxels", "lightcuts", "lightmap"), default="pathtrace",
                    help="default: pathtrace")
     p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
     p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
@@ -367,8 +404,9 @@ def build_parser():
                                    "half-float EXR (for voxview), cameras, lights and the bake's settings.\n\n"
                                    "Presets: preview (coarse voxels, seconds), default, high (finer voxels, more\n"
                                    "photons and directions). Texels are one voxel cell wide unless\n"
-                                   "--texel-density says otherwise. Every texel's value today comes from the\n"
-                                   "voxel solution; lightcuts will shade the default and high tiers.")
+                                   "--texel-density says otherwise. preview reconstructs the voxel solution at\n"
+                                   "each texel; default and high shade each texel by lightcuts over virtual\n"
+                                   "point lights (direct light with shadow rays, bounced light from the voxels).")
     _scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
     p.add_argument("--uv", choices=("per-triangle", "xatlas"), default="per-triangle",
@@ -376,6 +414,8 @@ def build_parser():
                         "quadtree-packed) or xatlas charts over connected triangles")
     p.add_argument("--texel-density", type=float, metavar="D",
                    help="texels per scene unit (default: one texel per voxel cell)")
+    p.add_argument("--texels", choices=("voxels", "lightcuts"),
+                   help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")
     p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..config import SolverConfig, solver_config, threads
 from ..errors import ConfigError
+from ..lights import LightcutsConfig, lightcuts_config
 from ..stats import Stats
 
 UV_MODES = ("per-triangle", "xatlas")
@@ -18,15 +19,15 @@ UV_MODES = ("per-triangle", "xatlas")
 class BakeConfig:
     """solver: the voxel solution's settings; uv: 'per-triangle' (the
     thesis's texture method) or 'xatlas' (charts); texel_density: texels per scene unit (None:
-    one texel per voxel cell); preset: the name it came from.
-
-    Texel values: every tier reconstructs the voxel solution at the texels
-    (the preview tier's method) until lightcuts shade texels; the presets
-    differ in the solution's resolution, directions and photons."""
+    one texel per voxel cell); preset: the name it came from; lightcuts:
+    how texels are shaded (None: the voxel solution reconstructed at each
+    texel, the preview tier; else lightcuts over the VPLs, the default and
+    high tiers)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
     preset: str = "default"
+    lightcuts: LightcutsConfig | None = None
 
     def __post_init__(self):
         if self.uv not in UV_MODES:
@@ -36,8 +37,17 @@ class BakeConfig:
                               f"(got {self.texel_density})")
 
 
-def bake_config(preset="default", uv="per-triangle", texel_density=None, **solver_overrides) -> BakeConfig:
-    return BakeConfig(solver_config(preset, **solver_overrides), uv, texel_density, preset)
+def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
+                direct_vpls=None, **solver_overrides) -> BakeConfig:
+    """A preset's bake settings. texels: 'voxels' or 'lightcuts' (default:
+    voxels for preview, lightcuts for default and high)."""
+    texels = texels or ("voxels" if preset == "preview" else "lightcuts")
+    if texels not in ("voxels", "lightcuts"):
+        raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
+    solver = solver_config(preset, **solver_overrides)
+    lc = lightcuts_config(preset, epsilon=epsilon, direct_vpls=direct_vpls, seed=solver.seed) \
+        if texels == "lightcuts" else None
+    return BakeConfig(solver, uv, texel_density, preset, lc)
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
@@ -64,18 +74,33 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     with stats.stage("charts"):
         charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
     checkpoint()
-    with stats.stage("texels"), bar(1, "texels", "stage", progress) as b:
-        texels = preview_texels(scene, solution, bvh, surfaces, charts, config.solver.seed)
-        b.update(1)
+    shading = {}
+    if config.lightcuts is None:
+        with stats.stage("texels"), bar(1, "texels", "stage", progress) as b:
+            texels = preview_texels(scene, solution, bvh, surfaces, charts, config.solver.seed)
+            b.update(1)
+    else:
+        from ..lights import build_lights
+        from ..lightmap import lightcuts_texels
+        lc = config.lightcuts
+        with stats.stage("lights"):
+            lights = build_lights(scene, solution, surfaces, lc)
+        shading.update(lights.vpls.counts())
+        with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
+            texels, st = lightcuts_texels(scene, solution, bvh, surfaces, charts, lights, lc.epsilon, lc.cap,
+                                          config.solver.seed, b.update)
+        shading.update(st, epsilon=lc.epsilon, cut_cap=lc.cap)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
     checkpoint()
     counts = dict(maps.counts, charts=int(getattr(charts, "charts", len(charts))),
                   texels_covered=int(texels.covered.sum()), texels_inside=int(texels.inside.sum()),
-                  dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)))
+                  dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)), **shading)
     stats.count(**counts)
     meta = {"preset": config.preset, "uv": config.uv, "texel_density": config.texel_density,
-            "texel_values": "voxel solution (reconstructed at each texel)", "solver": asdict(config.solver),
+            "texel_values": "voxel solution (reconstructed at each texel)" if config.lightcuts is None else
+            "lightcuts over the VPLs", "solver": asdict(config.solver),
+            "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}

@@ -89,6 +89,51 @@ def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
     return finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
 
 
+def side_normals(corners, texel_tri, texel_back):
+    """(N, 3) unit normal of each texel's triangle side (0 where none)."""
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    out = n[np.maximum(texel_tri, 0)]
+    out[texel_back] *= -1
+    out[texel_tri < 0] = 0
+    return out
+
+
+def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.02, cap=1000, seed=0,
+                     progress=None) -> TexelSet:
+    """The default and high tiers: each texel's irradiance by lightcuts over
+    the VPLs (direct light from the emitters' VPLs with shadow rays, the
+    indirect from the voxels'), at its sample point, on its side."""
+    from ..lights import irradiance
+    from ..startup import checkpoint
+    h = float(solution.voxels.cell_size)
+    corners = surfaces.arrays.corners
+    off, size, point, covered, ttri, tback = sample_points(layout, corners)
+    texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
+    lift = LIFT * min(h, texel)
+    inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
+                             tback, point, covered, lift, np.inf, seed)
+    normals = side_normals(corners, ttri, tback)
+    todo = np.nonzero(covered & (ttri >= 0))[0]
+    values = np.zeros((len(point), 3))
+    cuts = np.zeros(len(point), np.int64)
+    rays = np.zeros(len(point), np.int64)
+    batch = 1 << 15
+    for a in range(0, len(todo), batch):
+        idx = todo[a:a + batch]
+        values[idx], cuts[idx], rays[idx] = irradiance(lights, bvh, surfaces, point[idx], normals[idx], None, lift,
+                                                       epsilon, cap)
+        checkpoint()
+        if progress is not None:
+            progress(len(idx))
+    found = covered & (ttri >= 0)
+    ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
+    shaded = found & ~inside
+    stats = {"cut_mean": float(cuts[shaded].mean()) if shaded.any() else 0.0, "cut_max": int(cuts.max(initial=0)),
+             "shadow_rays": int(rays.sum()), "texels_shaded": int(found.sum())}
+    return ts, stats
+
+
 def finish(layout, off, size, ttri, tback, point, covered, inside, values, found) -> TexelSet:
     """Texels inside geometry next to a valid one take their valid
     neighbours' mean (one ring: what bilinear filtering at the object's
@@ -126,4 +171,4 @@ def pages_for(layout, texels, emits) -> Lightmaps:
 
 
 __all__ = ["PAGE", "Charts", "Lightmaps", "TexelSet", "XatlasLayout", "atlas_for", "build_atlas", "charts_for",
-           "finish", "layout_for", "pack_quadtree", "per_triangle_charts", "preview_texels", "texel_size_for"]
+           "finish", "layout_for", "lightcuts_texels", "pack_quadtree", "per_triangle_charts", "preview_texels", "texel_size_for"]
