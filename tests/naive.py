@@ -182,3 +182,34 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
     if trace is not None:
         return gathered, quad, sources
     return gathered, quad
+
+
+def vpl_irradiance(point, normal, vpls, corners, offset=1e-4):
+    """Brute force over the VPLs, one at a time in Python, visibility by
+    ray_triangles: sum of power x V cos_l cos_p / (pi r^2 + A) (area kind)
+    or power x V cos_p (directions)."""
+    p = np.asarray(point, float)
+    n = np.asarray(normal, float)
+    o = p + offset * n
+    total = np.zeros(3)
+    for k in range(len(vpls.kind)):
+        if vpls.kind[k] == 1:
+            w = vpls.normal[k]
+            cp = dot(n, w)
+            if cp <= 0 or ray_triangles(o, w, corners)[1] >= 0:
+                continue
+            total += vpls.power[k] * cp
+            continue
+        d = vpls.position[k] - p
+        r2 = dot(d, d)
+        r = np.sqrt(r2)
+        w = d / r
+        cp, cl = dot(n, w), -dot(vpls.normal[k], w)
+        if cp <= 0 or cl <= 0:
+            continue
+        e = vpls.position[k] - o
+        de = np.sqrt(dot(e, e))
+        if ray_triangles(o, e / de, corners, 0.0, de * (1 - 1e-4))[1] >= 0:
+            continue
+        total += vpls.power[k] * cl * cp / (np.pi * r2 + vpls.area[k])
+    return total

@@ -223,7 +223,7 @@ def build_tree(vpls, seed=0) -> LightTree:
     (k0, a), (k1, b) = parts
     n0 = len(a[5])
     root_lum = a[5][0] + b[5][0]
-    h = int(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) % np.uint64(1 << 53)) / float(1 << 53)
+    h = ((int(seed) * 0x9E3779B97F4A7C15) % (1 << 64) >> 11) / float(1 << 53)
     root = (np.minimum(a[0][0], b[0][0]), np.maximum(a[1][0], b[1][0]), np.array([0.0, 1.0, 0.0]), -1.0,
             a[4][0] + b[4][0], root_lum, a[6][0] if h * root_lum < a[5][0] else b[6][0])
     right_a = np.where(a[7] >= 0, a[7] + 1, -1)
