@@ -196,7 +196,7 @@ def vpl_irradiance(point, normal, vpls, corners, offset=1e-4):
         if vpls.kind[k] == 1:
             w = vpls.normal[k]
             cp = dot(n, w)
-            if cp <= 0 or ray_triangles(o, w, corners)[1] >= 0:
+            if cp <= 1e-6 or ray_triangles(o, w, corners)[1] >= 0:
                 continue
             total += vpls.power[k] * cp
             continue
@@ -205,7 +205,7 @@ def vpl_irradiance(point, normal, vpls, corners, offset=1e-4):
         r = np.sqrt(r2)
         w = d / r
         cp, cl = dot(n, w), -dot(vpls.normal[k], w)
-        if cp <= 0 or cl <= 0:
+        if cp <= 1e-6 or cl <= 1e-6:  # grazing: 0, as lightcuts.COS_MIN
             continue
         e = vpls.position[k] - o
         de = np.sqrt(dot(e, e))

@@ -11,7 +11,7 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import fill, inside_geometry, texel_points
+from .texels import INSET, fill, inside_geometry, texel_points
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
 
@@ -57,16 +57,17 @@ def layout_for(scene, texel_size, uv="per-triangle"):
     return charts_for(scene, texel_size)
 
 
-def sample_points(layout, corners):
-    """(map_offsets, map_size, point, covered, texel_tri, texel_back)."""
+def sample_points(layout, corners, inset=0.0):
+    """(map_offsets, map_size, point, covered, texel_tri, texel_back);
+    points clamped onto an edge move `inset` texels inward (texels.inset)."""
     if isinstance(layout, XatlasLayout):
-        point, covered, tri, back = xatlas_texels(layout, corners)
+        point, covered, tri, back = xatlas_texels(layout, corners, inset)
         size = np.full(layout.n_pages, PAGE, np.int64)
         off = np.arange(layout.n_pages + 1, dtype=np.int64) * PAGE * PAGE
         return off, size, point, covered, tri, back
     off = layout.offsets
     size = layout.size.astype(np.int64)
-    point, covered = texel_points(corners, layout.tri, layout.corners2d, layout.size, off)
+    point, covered = texel_points(corners, layout.tri, layout.corners2d, layout.size, off, float(inset))
     per = np.repeat(np.arange(len(layout)), size ** 2)
     return off, size, point, covered, layout.tri[per].astype(np.int32), layout.back[per]
 
@@ -108,7 +109,7 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     from ..startup import checkpoint
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
-    off, size, point, covered, ttri, tback = sample_points(layout, corners)
+    off, size, point, covered, ttri, tback = sample_points(layout, corners, INSET)
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,

@@ -5,7 +5,8 @@ inside geometry, and how empty texels are filled (docs/design.md section 8).
   j + 0.5) in the chart's texel units; its sample point is the point of the
   triangle nearest to that centre (the centre itself when it lies inside),
   nudged a hair towards the triangle's centroid so that it is never exactly
-  on an edge. A texel is *covered* when its centre lies within COVER
+  on an edge, and half a texel inward when the centre lay outside
+  (`inset`). A texel is *covered* when its centre lies within COVER
   texels of the triangle: those are the texels a bilinear lookup anywhere
   on the triangle reads (a lookup at x reads the centres within Chebyshev
   distance 1 of x, hence within Euclidean distance sqrt 2 < COVER).
@@ -38,6 +39,7 @@ from ..kernels.traverse import closest_hit, hit_normal
 
 COVER = 1.5           # texels: centres this near the triangle are sampled
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
+INSET = 0.5           # texels: a point clamped onto an edge moves this far inward
 FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
 PROBES = 16           # rays per texel for the inside-geometry test
 PROBE_BACK = 0.6      # fraction of probes on back faces that marks a texel inside geometry (a floor texel at the
@@ -82,15 +84,38 @@ def closest_on_triangle(px, py, ax, ay, bx, by, cx, cy):
     return 1.0 - v - w, v, w
 
 
+@njit(cache=True, inline="always")
+def inset(wa, wb, wc, outside, q, amount):
+    """Barycentrics of a sample point moved inward: a hair towards the
+    centroid always (never exactly on an edge), and INSET texels (at most
+    to the centroid) when the texel's centre lay outside the triangle and
+    its point was clamped onto an edge: there a neighbouring surface meeting
+    the edge is at distance 0, where point lights are least accurate (the
+    near-field bound of a VPL), and a bilinear lookup at the edge reads
+    this texel half and the one inside half. `amount`: INSET for lightcuts'
+    texels, 0 for the voxel reconstruction's (smooth across an edge: the
+    clamped point keeps seams closest)."""
+    third = 1.0 / 3.0
+    t = NUDGE
+    if outside:
+        gx = third * (q[0, 0] + q[1, 0] + q[2, 0]) - (wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0])
+        gy = third * (q[0, 1] + q[1, 1] + q[2, 1]) - (wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1])
+        d = math.sqrt(gx * gx + gy * gy)
+        t = 1.0 if d <= amount else max(NUDGE, amount / d)
+    wa = wa + (third - wa) * t
+    wb = wb + (third - wb) * t
+    return wa, wb, 1.0 - wa - wb
+
+
 @njit(cache=True, parallel=True)
-def texel_points(corners, chart_tri, corners2d, size, offsets):
-    """Sample point (N, 3) float64 and covered flag (N,) bool of every texel
+def texel_points(corners, chart_tri, corners2d, size, offsets, amount=0.0):
+    """Sample point (N, 3) float64 (moved `amount` texels inward where
+    clamped onto an edge) and covered flag (N,) bool of every texel
     of every chart (flat, chart c at offsets[c] .., row-major (row j,
     column i))."""
     total = offsets[-1]
     point = np.zeros((total, 3))
     covered = np.zeros(total, np.bool_)
-    third = 1.0 / 3.0
     for c in prange(len(size)):
         t = chart_tri[c]
         s = size[c]
@@ -99,13 +124,11 @@ def texel_points(corners, chart_tri, corners2d, size, offsets):
             for i in range(s):
                 px, py = i + 0.5, j + 0.5
                 wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
-                wa = wa + (third - wa) * NUDGE
-                wb = wb + (third - wb) * NUDGE
-                wc = 1.0 - wa - wb
                 dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
                 dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
                 k = offsets[c] + j * s + i
                 covered[k] = dx * dx + dy * dy <= COVER * COVER
+                wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > 0.0, q, amount)
                 for a in range(3):
                     point[k, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
     return point, covered

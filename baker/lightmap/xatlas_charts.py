@@ -7,7 +7,7 @@ charted as a triangle of its own (wound the other way).
 Texels: each page texel belongs to the triangle whose UV triangle is
 nearest its centre (within COVER texels: the texels bilinear lookups on
 the triangles read); its sample point is that triangle's point nearest the
-centre, nudged inward. The rest of the page is filled from them (dilation
+centre, moved inward (texels.inset). The rest of the page is filled from them (dilation
 into the padding).
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from .atlas import PAGE
-from .texels import COVER, NUDGE, closest_on_triangle
+from .texels import COVER, closest_on_triangle, inset
 
 PADDING = 2
 
@@ -79,7 +79,7 @@ def xatlas_layout(vertices, triangles, two_sided, texel_size) -> XatlasLayout:
 
 
 @njit(cache=True)
-def _rasterize(uv, page, n_pages, size):
+def _rasterize(uv, page, n_pages, size, amount):
     """Per texel of every page: the face nearest its centre within COVER
     (-1: none) and the barycentrics of that face's point nearest it."""
     n = n_pages * size * size
@@ -104,17 +104,15 @@ def _rasterize(uv, page, n_pages, size):
                 if d <= COVER * COVER and d < best[k]:
                     best[k] = d
                     face[k] = f
-                    bary[k, 0], bary[k, 1], bary[k, 2] = wa, wb, wc
+                    bary[k, 0], bary[k, 1], bary[k, 2] = inset(wa, wb, wc, d > 0.0, q, amount)
     return face, bary
 
 
-def xatlas_texels(layout: XatlasLayout, corners):
+def xatlas_texels(layout: XatlasLayout, corners, amount=0.0):
     """Sample points (N, 3), covered (N,), texel_tri (N,) int32, texel_back
     (N,) bool of every texel of every page (page-major, row-major)."""
-    face, bary = _rasterize(layout.uv, layout.page, layout.n_pages, PAGE)
+    face, bary = _rasterize(layout.uv, layout.page, layout.n_pages, PAGE, float(amount))
     covered = face >= 0
-    third = 1.0 / 3.0
-    bary = bary + (third - bary) * NUDGE  # inward, never exactly on an edge
     f = np.where(covered, face, 0)
     tri = layout.tri[f]
     c = corners[tri]

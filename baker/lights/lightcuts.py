@@ -28,6 +28,8 @@ from ..scene.surfaces import punctual_irradiance
 from .vpl import KIND_DIRECTIONAL
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of an area VPL (it lies on a surface)
+COS_MIN = 1e-6      # cosines below this are 0: a VPL rounded 1e-17 below the plane of the floor it lies on must not
+#                     light the face of a box resting on that floor (1e-34 where the truth is 0)
 
 
 @njit(cache=True, inline="always")
@@ -37,7 +39,7 @@ def vpl_g(bvh, stack, kind, position, normal, area, v, px, py, pz, nx, ny, nz, o
     if kind[v] == KIND_DIRECTIONAL:
         dx, dy, dz = normal[v, 0], normal[v, 1], normal[v, 2]
         cp = nx * dx + ny * dy + nz * dz
-        if cp <= 0.0:
+        if cp <= COS_MIN:
             return 0.0
         if shadows and any_hit(bvh, stack, px + offset * nx, py + offset * ny, pz + offset * nz, dx, dy, dz, 0.0,
                                np.inf):
@@ -51,7 +53,7 @@ def vpl_g(bvh, stack, kind, position, normal, area, v, px, py, pz, nx, ny, nz, o
     dx, dy, dz = dx / r, dy / r, dz / r
     cp = nx * dx + ny * dy + nz * dz
     cl = -(normal[v, 0] * dx + normal[v, 1] * dy + normal[v, 2] * dz)
-    if cp <= 0.0 or cl <= 0.0:
+    if cp <= COS_MIN or cl <= COS_MIN:
         return 0.0
     if shadows:
         ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
@@ -177,10 +179,14 @@ def lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree
     e2 = tree_power[root, 2] * g
     size = 0
     cut = 1
+    f0 = f1 = f2 = 0.0  # the cut's nodes that are final (leaves, nodes that cannot light p), summed once
+    b = 0.0
     if tree_right[root] >= 0:
         b = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, root, px, py, pz, nx, ny, nz)
-        if b > 0.0:
-            size = _push(heap_b, heap_n, heap_g, size, b, root, g)
+    if b > 0.0:
+        size = _push(heap_b, heap_n, heap_g, size, b, root, g)
+    else:
+        f0, f1, f2 = e0, e1, e2
     while size > 0:
         est = 0.2126 * e0 + 0.7152 * e1 + 0.0722 * e2
         if heap_b[0] <= epsilon * est or cut >= cap:
@@ -201,12 +207,23 @@ def lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree
             e1 += tree_power[child, 1] * gc
             e2 += tree_power[child, 2] * gc
             cut += 1
+            bc = 0.0
             if tree_right[child] >= 0:
                 bc = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, child, px, py, pz, nx,
                                 ny, nz)
-                if bc > 0.0:
-                    size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
-    return max(e0, 0.0), max(e1, 0.0), max(e2, 0.0), cut, rays
+            if bc > 0.0:
+                size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
+            else:
+                f0 += tree_power[child, 0] * gc
+                f1 += tree_power[child, 1] * gc
+                f2 += tree_power[child, 2] * gc
+    # the result summed afresh over the cut (the running estimate above subtracts: rounding would leave 1e-31
+    # where every term is 0, and a dark room must stay exactly black)
+    for i in range(size):
+        f0 += tree_power[heap_n[i], 0] * heap_g[i]
+        f1 += tree_power[heap_n[i], 1] * heap_g[i]
+        f2 += tree_power[heap_n[i], 2] * heap_g[i]
+    return f0, f1, f2, cut, rays
 
 
 @njit(cache=True)
