@@ -51,13 +51,19 @@ def test_charts_are_power_of_two_squares_with_border():
     rng = np.random.default_rng(1)
     corners = rng.uniform(-3, 3, (200, 3, 3))
     corners[:5] *= 100  # larger than a page at this texel size: coarser texels
+    corners[5:15] = corners[5:15, :1] + 0.03 * (corners[5:15] - corners[5:15, :1])  # smaller than a map: finer
     ch = per_triangle_charts(corners, rng.uniform(size=200) < 0.3, 0.1)
     assert len(ch) == 200 + int((ch.back).sum()) and ch.back.sum() > 20
     s = ch.size
     assert ((s & (s - 1)) == 0).all() and s.min() >= MIN_SIZE and s.max() <= MAX_SIZE
     assert (ch.corners2d.min(axis=(1, 2)) >= BORDER - 1e-9).all()           # the border is kept
     assert (ch.corners2d.max(axis=(1, 2)) <= s - BORDER + 1e-9).all()
-    assert (ch.texel[:10] > 0.1).any() and np.allclose(ch.texel[ch.tri >= 5], 0.1)
+    assert (ch.texel[:10] > 0.1).any()
+    span = np.ptp(ch.corners2d * ch.texel[:, None, None], axis=1).max(axis=1)  # scene units
+    big = (ch.tri >= 5) & (span >= 0.4)
+    assert np.allclose(ch.texel[big], 0.1)
+    small = span < 0.4  # smaller than the 8 x 8 map's interior: finer texels that fill it
+    assert small.any() and np.allclose(ch.texel[small], np.maximum(span[small] / 4, 0.1 / 16))
 
 
 def test_texel_points_lie_on_their_triangle():

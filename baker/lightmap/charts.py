@@ -6,7 +6,8 @@ projected on the plane of its dominant axis, its bounding rectangle is
 taken in texel units (texel size = one voxel cell by default), BORDER
 texels are added on every side and the square is rounded up to a power of
 two (at least MIN_SIZE, at most MAX_SIZE: a triangle too large for a page
-gets coarser texels). A two-sided triangle has two charts (front and
+gets coarser texels, one smaller than the smallest map's interior finer
+ones that fill it). A two-sided triangle has two charts (front and
 back): the two faces of a thin wall see different light.
 
 Charts are flat arrays: chart c belongs to triangle `tri[c]` (its back if
@@ -24,6 +25,7 @@ import numpy as np
 BORDER = 2        # texels around the triangle's bounding rectangle
 MIN_SIZE = 8      # the smallest map (and the quadtree's smallest node)
 MAX_SIZE = 512    # a page: no map is larger
+MAX_REFINE = 16   # a small triangle's texels are at most this much finer than the texel size asked for
 
 
 @dataclass(frozen=True)
@@ -80,17 +82,24 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     c = corners[tri]                                             # (nc, 3, 3)
     p2 = np.take_along_axis(c, uv_axes[:, None, :].repeat(3, axis=1), axis=2)  # (nc, 3, 2) scene units
     texel = np.full(len(tri), float(texel_size))
+    # a triangle smaller than the smallest map's interior gets finer texels that fill it: the map's texels cost
+    # nothing more, and the light varies across the triangle as it does across its neighbours (at one texel per
+    # triangle a finely tessellated floor shows every triangle as a flat tile)
+    span = np.ptp(p2, axis=1).max(axis=1)
+    fine = float(MIN_SIZE - 2 * BORDER)
+    small = span < fine * texel
+    texel[small] = np.maximum(span[small] / fine, texel[small] / MAX_REFINE)
     for _ in range(64):  # coarser texels for triangles too large for a page
-        lo = np.floor(p2.min(axis=1) / texel[:, None])
-        hi = np.ceil(p2.max(axis=1) / texel[:, None])
-        extent = (hi - lo).max(axis=1) + 2 * BORDER
+        lo = p2.min(axis=1) / texel[:, None]
+        hi = p2.max(axis=1) / texel[:, None]
+        extent = np.ceil((hi - lo).max(axis=1) - 1e-9) + 2 * BORDER
         big = extent > MAX_SIZE
         if not big.any():
             break
         texel[big] *= extent[big] / MAX_SIZE * 1.0001
     size = np.clip(_pow2(extent), MIN_SIZE, MAX_SIZE).astype(np.int32)
     # centre the rectangle in its square, at least BORDER texels from each side
-    pad = np.floor((size[:, None] - (hi - lo)) / 2)
+    pad = (size[:, None] - (hi - lo)) / 2
     origin = lo - pad
     corners2d = p2 / texel[:, None, None] - origin[:, None, :]
     return Charts(tri, back, axis, origin, size, texel, corners2d)
