@@ -158,7 +158,7 @@ def cmd_render(args):
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
     if args.spp < 1:
         raise VoxgiError(f"--spp must be at least 1 (got {args.spp})")
-    config = _render_config(args) if args.method in ("voxels", "lightcuts") else None
+    config = _render_config(args) if args.method in ("voxels", "lightcuts", "instant-radiosity") else None
     stats = Stats("render " + args.method)
     with threads(args.threads):
         with stats.stage("load"):
@@ -197,6 +197,26 @@ def cmd_render(args):
                   f"{lights.vpls.counts()['vpls_indirect']} indirect, {lights.vpls.counts()['vpls_sky']} sky)  "
                   f"cut mean {fstats['cut_mean']:.0f} max {fstats['cut_max']}  shadow rays/pixel "
                   f"{fstats['shadow_rays_per_pixel']:.0f}", file=sys.stderr)
+        elif args.method == "instant-radiosity":
+            from .lights import build_lights, ordered_vpls
+            from .render.instant_radiosity import render_instant_radiosity
+            from .solve import solve
+            if args.vpls_per_frame < 1 or args.frames < 1:
+                raise VoxgiError("--vpls-per-frame and --frames must be at least 1")
+            solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
+            lc = _lightcuts_config(args)
+            with stats.stage("lights"):
+                lights = build_lights(scene, solution, surf, lc)
+                lo, hi = scene.bounds()
+                order = ordered_vpls(lights.vpls, args.vpls_per_frame * args.frames,
+                                     0.5 * float(np.linalg.norm(hi - lo)), lc.seed)
+            stats.count(**lights.vpls.counts())
+            with stats.stage("instant_radiosity"), bar(args.frames, "instant radiosity", "frame") as b:
+                image, irs = render_instant_radiosity(tree, surf, order, cam, args.width, args.height,
+                                                      args.vpls_per_frame, args.frames, args.ir_tolerance, b.update)
+            stats.count(ir_frames=irs["frames"], ir_vpls_used=irs["vpls_used"], ir_last_change=irs["change"])
+            print(f"{irs['frames']} frames of {args.vpls_per_frame} VPLs (last change {irs['change']:.2e})",
+                  file=sys.stderr)
         elif args.method == "pathtrace":
             from .render.pathtrace import render_pathtrace
             with stats.stage("pathtrace"), bar(args.height, f"path tracing {args.spp} spp", "row") as b:
@@ -377,14 +397,21 @@ def build_parser():
                                    "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n"
                                    "  lightcuts  the quality frame: the voxel solution as virtual point lights,\n"
                                    "             shaded by lightcuts (edge pixels anti-aliased 4x4)\n"
+                                   "  instant-radiosity  the progressive preview on the CPU: the VPLs in a fixed\n"
+                                   "             order drawn by power, --vpls-per-frame a frame, running average\n"
                                    "  lightmap   a bake file (`voxbake bake`) as a viewer shows it: albedo x\n"
                                    "             lightmap irradiance / pi + emission (give the .glb as SCENE)\n\n"
                                    "EXR output is linear radiance (W m^-2 sr^-1); PNG is exposure-adjusted,\n"
                                    "ACES-filmic tone-mapped sRGB.")
     _scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
-    p.add_argument("--method", choices=("pathtrace", "voxels", "lightcuts", "lightmap"), default="pathtrace",
-                   help="default: pathtrace")
+    p.add_argument("--method", choices=("pathtrace", "voxels", "lightcuts", "instant-radiosity", "lightmap"),
+                   default="pathtrace", help="default: pathtrace")
+    p.add_argument("--vpls-per-frame", type=int, default=16,
+                   help="instant-radiosity: VPLs added per frame (default 16)")
+    p.add_argument("--frames", type=int, default=256, help="instant-radiosity: frames at most (default 256)")
+    p.add_argument("--ir-tolerance", type=float, default=0.0,
+                   help="instant-radiosity: stop when a frame changes the image by less than this (relative)")
     p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
     p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
     p.add_argument("--spp", type=int, default=64, help="pathtrace: samples per pixel (default 64)")

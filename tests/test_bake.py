@@ -41,6 +41,11 @@ def test_round_trip(cornell_bake):
         assert np.allclose(back.scene.materials[m[k]].albedo, bake.scene.materials[orig[k]].albedo)
         assert np.allclose(back.scene.materials[m[k]].emission, bake.scene.materials[orig[k]].emission, rtol=1e-6)
     assert back.meta["preset"] == "preview" and back.meta["counts"]["maps"] == len(bake.page)
+    # the ordered VPL list of the viewer's preview, as float32
+    assert len(back.vpls) == len(bake.vpls) == 65_536
+    for f in ("position", "normal", "power", "area"):
+        assert np.allclose(getattr(back.vpls, f), getattr(bake.vpls, f), rtol=1e-6, atol=1e-9)
+    assert np.array_equal(back.vpls.kind, bake.vpls.kind) and np.array_equal(back.vpls.indirect, bake.vpls.indirect)
     assert len(back.scene.cameras) == len(bake.scene.cameras)
     # what the file shows is what the bake in memory shows
     a = render_bake(bake, 0, 32, 32)

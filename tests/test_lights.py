@@ -220,3 +220,34 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.06
     assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.02
     assert stats["edge_pixels"] > 0 and stats["cut_mean"] > 1
+
+
+def test_ordered_list_is_an_unbiased_running_average(cornell_lights):
+    """The instant-radiosity list: draws in proportion to power, each with
+    power / probability, so the mean over the first m draws estimates the
+    sum over all VPLs. The CPU's progressive image converges to the brute
+    force over the VPLs: relative RMSE 6% after 16 frames of 16, below 2%
+    after 256 (measured 6.2%, 3.1% at 64, 1.2% at 256; the stratified
+    order converges faster than 1/sqrt(m)); same list for the same seed."""
+    from baker.lights import ordered_vpls
+    from baker.render import camera_array
+    from baker.render.instant_radiosity import render_instant_radiosity
+    from baker.render.lightcuts_frame import render_lightcuts
+    scene, bvh, surf, sol, lights = cornell_lights
+    order = ordered_vpls(lights.vpls, 4096, 0.5, 0)
+    again = ordered_vpls(lights.vpls, 4096, 0.5, 0)
+    assert np.array_equal(order.position, again.position) and np.array_equal(order.power, again.power)
+    total = lights.vpls.power.sum(axis=0)
+    for m in (64, 1024, 4096):  # the list's own estimate of the total power
+        assert np.allclose(order.power[:m].mean(axis=0), total, rtol=0.05)
+    s = 32
+    cam = camera_array(scene.camera(None), s, s)
+    brute, _ = render_lightcuts(bvh, surf, lights, cam, s, s, brute=True, aa=False)
+    errs = []
+    for frames in (16, 256):
+        img, st = render_instant_radiosity(bvh, surf, order, cam, s, s, 16, frames)
+        assert st["frames"] == frames and st["vpls_used"] == 16 * frames
+        a, b = img @ LUM, brute @ LUM
+        lit = b > 0
+        errs.append(np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean())
+    assert errs[1] < 0.02 and errs[1] < 0.5 * errs[0], errs

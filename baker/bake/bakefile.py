@@ -12,7 +12,8 @@
   scale = the brightest non-emitter texel of the page, so lamps may clip
   but the 8 bits go to the scene) for other viewers; the full-precision
   page (half-float EXR, `image/x-exr`, H in W/m^2 times `exrScale`) in the
-  root `VOXGI_lightmap` extension for ours.
+  root `VOXGI_lightmap` extension for ours, with the ordered VPL list of
+  the viewer's progressive preview (`vpls`: float32 rows of VPL_FIELDS).
 - Cameras, KHR_lights_punctual lights, and in root `extras.voxgi`: format
   version, voxgi version, settings, counts, timings, and the SHA-256 of the
   binary chunk, which the reader checks: a damaged or altered file is
@@ -33,6 +34,7 @@ from .mesh import Bake
 
 FORMAT_VERSION = 1
 EXTENSION = "VOXGI_lightmap"
+VPL_FIELDS = ("px", "py", "pz", "nx", "ny", "nz", "r", "g", "b", "area", "kind", "indirect")  # float32 per VPL
 HALF_MAX = 60000.0
 
 
@@ -103,6 +105,12 @@ def write_bake(path, bake: Bake):
         b.light(light.name, light.kind, inten / peak_i, peak_i, light.position, light.direction,
                 float(np.degrees(light.inner_cone)), float(np.degrees(light.outer_cone)))
     root = {"version": FORMAT_VERSION, "pages": page_entries, "exrScale": float(exr_scale)}
+    if bake.vpls is not None and len(bake.vpls):
+        v = bake.vpls
+        rows = np.concatenate([v.position, v.normal, v.power, v.area[:, None], v.kind[:, None],
+                               v.indirect[:, None]], axis=1).astype(np.float32)
+        root["vpls"] = {"bufferView": b.buffer_view(rows.tobytes()), "count": int(len(rows)),
+                        "fields": list(VPL_FIELDS)}
     if scene.sky is not None:
         root["sky"] = {"radiance": [float(v) for v in scene.sky.radiance], "hemisphere": bool(scene.sky.hemisphere)}
     extras = {"voxgi": {"formatVersion": FORMAT_VERSION, "version": __version__, **_jsonable(bake.meta)}}
@@ -199,7 +207,28 @@ def read_bake(path) -> Bake:
     if not np.isfinite(pages).all() or pages.min() < 0:
         raise BakeFileError("lightmap pages hold negative or non-finite values", path)
     meta = {k: v for k, v in info.items() if k not in ("binSha256",)}
-    return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta)
+    try:
+        vpls = _read_vpls(blob, doc, root.get("vpls"))
+    except (KeyError, TypeError, ValueError, IndexError) as e:
+        raise BakeFileError(f"damaged VPL list ({type(e).__name__}: {e})", path) from None
+    return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls)
+
+
+def _read_vpls(blob, doc, entry):
+    if entry is None:
+        return None
+    from ..lights.vpl import VPLs
+    if list(entry["fields"]) != list(VPL_FIELDS):
+        raise ValueError(f"fields {entry['fields']}")
+    view = doc["bufferViews"][entry["bufferView"]]
+    start = view.get("byteOffset", 0)
+    n = int(entry["count"])
+    rows = np.frombuffer(blob, np.float32, count=n * len(VPL_FIELDS), offset=start).reshape(n, len(VPL_FIELDS))
+    rows = rows.astype(np.float64)
+    if not np.isfinite(rows).all():
+        raise ValueError("non-finite values")
+    return VPLs(rows[:, 10].astype(np.int8), rows[:, 0:3].copy(), rows[:, 3:6].copy(), rows[:, 6:9].copy(),
+                rows[:, 9].copy(), rows[:, 11] > 0.5)
 
 
 def _read_exr_page(blob, doc, entry):

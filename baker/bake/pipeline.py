@@ -28,6 +28,7 @@ class BakeConfig:
     texel_density: float | None = None
     preset: str = "default"
     lightcuts: LightcutsConfig | None = None
+    preview_vpls: int = 65_536
 
     def __post_init__(self):
         if self.uv not in UV_MODES:
@@ -75,6 +76,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
         charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
     checkpoint()
     shading = {}
+    lights = None
     if config.lightcuts is None:
         with stats.stage("texels"), bar(1, "texels", "stage", progress) as b:
             texels = preview_texels(scene, solution, bvh, surfaces, charts, config.solver.seed)
@@ -104,8 +106,21 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}
+    ordered = None
+    if config.preview_vpls > 0:
+        from ..lights import build_lights, ordered_vpls
+        with stats.stage("lights"):
+            if lights is None:
+                lights = build_lights(scene, solution, surfaces, lightcuts_config(
+                    config.preset if config.preset in ("preview", "default", "high") else "default",
+                    seed=config.solver.seed))
+            lo, hi = scene.bounds()
+            ordered = ordered_vpls(lights.vpls, config.preview_vpls, 0.5 * float(np.linalg.norm(hi - lo)),
+                                   config.solver.seed)
+        counts["preview_vpls"] = len(ordered)
+        stats.count(preview_vpls=len(ordered))
     if not scene.cameras:  # a viewer opens the bake at a camera: the automatic one that sees the scene
         from dataclasses import replace
         scene = replace(scene, cameras=(replace(scene.camera(None, bvh), name="auto"),))
-    bake = baked_scene(scene, charts, maps, meta)
+    bake = baked_scene(scene, charts, maps, meta, ordered)
     return bake, solution, texels, maps

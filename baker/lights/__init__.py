@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import ConfigError
 from .lightcuts import brute_force, lightcut, shade_points
 from .lighttree import LightTree, build_tree
+from .ordered import ordered_vpls
 from .vpl import KIND_AREA, KIND_DIRECTIONAL, VPLs, concat, direct_vpls, indirect_vpls, make_vpls, sky_vpls
 
 
@@ -77,4 +78,4 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
 
 __all__ = ["KIND_AREA", "KIND_DIRECTIONAL", "LIGHTCUTS_PRESETS", "LightTree", "Lights", "LightcutsConfig", "VPLs",
            "brute_force", "build_lights", "build_tree", "concat", "direct_vpls", "indirect_vpls", "irradiance",
-           "lightcut", "lightcuts_config", "make_vpls", "sky_vpls"]
+           "lightcut", "lightcuts_config", "make_vpls", "ordered_vpls", "sky_vpls"]
