@@ -278,7 +278,7 @@ def cmd_bake(args):
     _check_common(args)
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
-                             resolution=args.resolution,
+                             preview_vpls=args.preview_vpls, resolution=args.resolution,
                              cell_size=args.cell_size, radius=args.radius, photons=args.photons, seed=args.seed,
                              threads=args.threads, memory_budget_mb=args.memory_budget, schedule=args.schedule,
                              tolerance=args.tolerance, max_bounces=args.max_bounces)
@@ -441,6 +441,9 @@ def build_parser():
                         "quadtree-packed) or xatlas charts over connected triangles")
     p.add_argument("--texel-density", type=float, metavar="D",
                    help="texels per scene unit (default: one texel per voxel cell)")
+    p.add_argument("--preview-vpls", type=int, default=65_536,
+                   help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
+                        "0: none)")
     p.add_argument("--texels", choices=("voxels", "lightcuts"),
                    help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")

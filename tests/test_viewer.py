@@ -150,8 +150,9 @@ def test_snapshot_command_writes_png_and_exr(tmp_path):
         assert r.returncode == 0, r.stderr
     img = read_exr(tmp_path / "shot.exr")
     assert img.shape == (32, 48, 3) and img.max() > 0
-    r = voxview("snapshot", BAKE, "-o", tmp_path / "p.png", "--mode", "preview")
-    assert r.returncode == 2 and "VPL" in r.stderr
+    r = voxview("snapshot", BAKE, "-o", tmp_path / "p.png", "--mode", "preview", "--frames", "4", "--width", "32",
+                "--height", "32")
+    assert r.returncode == 0 and (tmp_path / "p.png").exists(), r.stderr
 
 
 @pytest.mark.skipif(not shutil.which("xvfb-run"), reason="Xvfb is not installed (scripts/setup.sh installs it)")
@@ -178,3 +179,26 @@ def test_real_window_under_xvfb(tmp_path, bake):
         shots[name] = np.asarray(Image.open(out).convert("RGB"), float)
         assert shots[name].shape == (240, 320, 3) and shots[name].mean() > 20
     assert np.abs(shots["walk"] - shots["still"]).mean() > 5
+
+
+def test_gpu_preview_converges_to_the_cpu_instant_radiosity(ctx, bake):
+    """The viewer's progressive preview (cube shadow maps per VPL) against
+    the CPU's instant radiosity over the same ordered list, 64 frames of 16
+    VPLs, at the pixels' centres: mean within 2%, relative RMSE below 5%
+    (measured 0.993 and 1.8% at 64 x 64; what differs is the shadow maps'
+    resolution and bias against exact shadow rays)."""
+    from baker.render import camera_array
+    from baker.render.instant_radiosity import render_instant_radiosity
+    from baker.scene import build_scene_bvh, load_scene, pack
+    from viewer.snapshot import snapshot
+    assert bake.vpls is not None and len(bake.vpls) >= 1024
+    s = 48
+    gpu = snapshot(bake, 0, s, s, mode="preview", frames=64, ctx=ctx)
+    scene = load_scene("cornell_box")
+    bvh, surf = build_scene_bvh(scene), pack(scene)
+    cpu, st = render_instant_radiosity(bvh, surf, bake.vpls, camera_array(bake.scene.cameras[0], s, s), s, s, 16, 64)
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    a, c = gpu @ lum, cpu @ lum
+    lit = (c > 0) & (c < 0.5 * c.max())
+    assert abs(a[lit].mean() / c[lit].mean() - 1) < 0.02
+    assert np.sqrt(np.mean((a[lit] - c[lit]) ** 2)) / c[lit].mean() < 0.05

@@ -15,10 +15,11 @@ EPILOG = """examples:
   voxview cornell.glb
   voxview snapshot cornell.glb --width 640 --height 480 -o shot.png
   voxview snapshot cornell.glb --mode checker -o texels.png
+  voxview snapshot cornell.glb --mode preview --frames 256 -o ir.png
   voxview glinfo
 
 Keys in the window: W A S D (Q E down/up) move, Shift faster, drag to look, wheel zooms, 1-9 cameras,
-+/- exposure (0 automatic), F1-F5 or M views, B bicubic, F12 screenshot, Esc quits.
++/- exposure (0 automatic), F1-F5 or M views, P the progressive preview, B bicubic, F12 screenshot, Esc.
 """
 COMMANDS = ("walk", "snapshot", "glinfo")
 
@@ -57,12 +58,14 @@ def cmd_snapshot(args):
     check_output_path(args.output, (".png", ".exr"))
     if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
-    if args.mode == "preview":
-        raise VoxgiError("--mode preview needs the bake's ordered VPL list, which bakes do not carry yet "
-                         "(it comes with lightcuts); use --mode lightmap")
+    if args.frames < 1 or args.vpls_per_frame < 1:
+        raise VoxgiError("--frames and --vpls-per-frame must be at least 1")
     bake = _read(args.bake)
     cam = _camera(bake, args.camera)
-    img = snapshot(bake, cam, args.width, args.height, args.mode, args.samples, args.bicubic)
+    from baker.progress import bar
+    with bar(args.frames if args.mode == "preview" else 0, "preview", "frame", args.mode == "preview") as b:
+        img = snapshot(bake, cam, args.width, args.height, args.mode, args.samples, args.bicubic,
+                       frames=args.frames, per_frame=args.vpls_per_frame, progress=b.update)
     checkpoint()
     write_image(args.output, img, args.exposure)
     print(f"wrote {args.output}  ({args.width}x{args.height}, {args.mode})")
@@ -103,7 +106,8 @@ def build_parser():
     p.add_argument("--width", type=int, default=1280, help="window width (default 1280)")
     p.add_argument("--height", type=int, default=720, help="window height (default 720)")
     p.add_argument("--exposure", type=float, default=None, help="exposure in EV (default: automatic)")
-    p.add_argument("--mode", choices=MODES, default="lightmap", help="view to start in (default: lightmap)")
+    p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
+                   help="view to start in (default: lightmap; preview: progressive instant radiosity)")
     p.add_argument("--script", metavar="FILE.json", help="scripted input events (see viewer/window.py)")
     p.add_argument("--frames", type=int, help="close after this many frames")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame here")
@@ -119,8 +123,10 @@ def build_parser():
     p.add_argument("--width", type=int, default=512)
     p.add_argument("--height", type=int, default=512)
     p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
-                   help="lightmap (default), a debug view, or preview (progressive instant radiosity)")
-    p.add_argument("--frames", type=int, default=64, help="preview mode: frames to accumulate")
+                   help="lightmap (default), a debug view, or preview (progressive instant radiosity over the "
+                        "bake's VPL list, at the pixels' centres)")
+    p.add_argument("--frames", type=int, default=64, help="preview mode: frames to accumulate (default 64)")
+    p.add_argument("--vpls-per-frame", type=int, default=16, help="preview mode: VPLs a frame (default 16)")
     p.add_argument("--samples", type=int, default=4, help="samples per pixel along each axis (default 4)")
     p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
     p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")

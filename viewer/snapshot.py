@@ -38,9 +38,12 @@ def render_offscreen(ctx, renderer, camera, width, height, mode="lightmap", samp
     return np.ascontiguousarray(np.maximum(img, 0.0), np.float32)
 
 
-def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=4, bicubic=False, ctx=None):
+def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=4, bicubic=False, ctx=None,
+             frames=64, per_frame=16, progress=None):
     """A bake's snapshot from `camera` (a Camera, name, index or None: the
-    bake's first), on a standalone EGL context (or `ctx`)."""
+    bake's first), on a standalone EGL context (or `ctx`). mode 'preview':
+    the progressive instant radiosity after `frames` frames of `per_frame`
+    VPLs, at the pixels' centres (as the CPU's)."""
     from .context import headless_context
     from .renderer import Renderer
     own = ctx is None
@@ -48,7 +51,18 @@ def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=
     try:
         r = Renderer(ctx, bake)
         cam = camera if hasattr(camera, "forward") else bake.scene.camera(camera)
-        img = render_offscreen(ctx, r, cam, width, height, mode, samples, bicubic)
+        if mode == "preview":
+            from .preview import Preview
+            pv = Preview(ctx, r, cam, width, height, per_frame=per_frame)
+            for _ in range(frames):
+                if not pv.frame():
+                    break
+                if progress is not None:
+                    progress(1)
+            img = pv.image()
+            pv.release()
+        else:
+            img = render_offscreen(ctx, r, cam, width, height, mode, samples, bicubic)
         r.release()
         return img
     finally:

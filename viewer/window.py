@@ -7,6 +7,7 @@ glfw). Keys and mouse become `Controls` for the pure-maths camera
     1 .. 9          jump to the file's cameras          F12     screenshot (PNG)
     + / -           exposure up / down (1/2 EV)         0       automatic exposure
     M or F1 .. F5   view: lightmap, irradiance, albedo, texel checker, pages
+    P               progressive instant-radiosity preview on/off (restarts when the camera moves)
     B               bicubic lightmap filtering on/off   Esc     quit
 
 Scripted input (`--script FILE.json`, for tests and demos): a list of
@@ -142,6 +143,10 @@ class Walkthrough:
         self.title = title
         self.input = InputState()
         self.shots = []
+        self.preview_on = mode == "preview"
+        if mode == "preview":
+            self.mode = "lightmap"
+        self.preview = None
 
     # -- glfw ---------------------------------------------------------------
     def _open(self):
@@ -164,7 +169,7 @@ class Walkthrough:
         return glfw, win
 
     def _callbacks(self, glfw, win):
-        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMB0123456789"}
+        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBP0123456789"}
         names.update({glfw.KEY_LEFT_SHIFT: "SHIFT", glfw.KEY_RIGHT_SHIFT: "SHIFT", glfw.KEY_F12: "F12",
                       glfw.KEY_ESCAPE: "ESCAPE", glfw.KEY_EQUAL: "+", glfw.KEY_KP_ADD: "+", glfw.KEY_MINUS: "-",
                       glfw.KEY_KP_SUBTRACT: "-", glfw.KEY_F1: "F1", glfw.KEY_F2: "F2", glfw.KEY_F3: "F3",
@@ -222,11 +227,28 @@ class Walkthrough:
             self.mode = MODES[int(key[1]) - 1]
         elif key == "B":
             self.bicubic = not self.bicubic
+        elif key == "P":
+            self.preview_on = not self.preview_on
         elif key == "F12":
             self._screenshot(ctx)
         elif key == "ESCAPE":
             return camera, False
         return camera, True
+
+    def _preview_frame(self, ctx, renderer, camera, w, h):
+        """One frame of the progressive preview: restarts when the camera or
+        the window changed, adds the next VPLs, shows the running mean."""
+        from .preview import Preview
+        if self.preview is None or self.preview.size != (w, h):
+            if self.preview is not None:
+                self.preview.release()
+            self.preview = Preview(ctx, renderer, camera, w, h)
+        elif self.preview.camera != camera:
+            self.preview.restart(camera)
+        self.preview.frame()
+        ctx.screen.use()
+        ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+        self.preview.show(2.0 ** self.exposure_ev, w, h)
 
     def _screenshot(self, ctx, path=None):
         from PIL import Image
@@ -272,15 +294,20 @@ class Walkthrough:
                 camera = camera.step(dt, self.input.controls())
                 w, h = glfw.get_framebuffer_size(win)
                 self.size = (w, h)
-                ctx.screen.use()
-                ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-                renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic)
+                if self.preview_on:
+                    self._preview_frame(ctx, renderer, camera, w, h)
+                else:
+                    ctx.screen.use()
+                    ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+                    renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic)
                 fps_n += 1
                 if now - fps_t >= 0.5:
                     fps, fps_t, fps_n = fps_n / (now - fps_t), now, 0
                 rate = f"{fps:5.1f} fps" if fps else "   -- fps"
-                overlay.draw(f"{rate}   {self.mode}{' bicubic' if self.bicubic else ''}   "
-                             f"EV {self.exposure_ev:+.1f}   F1-F5 views, +/- exposure, 1-9 cameras", w, h)
+                view = (f"preview {self.preview.used} VPLs" if self.preview_on and self.preview is not None
+                        else f"{self.mode}{' bicubic' if self.bicubic else ''}")
+                overlay.draw(f"{rate}   {view}   EV {self.exposure_ev:+.1f}   F1-F5 views, P preview, "
+                             f"+/- exposure, 1-9 cameras", w, h)
                 frame += 1
                 if self.frames is not None and frame >= self.frames:
                     if self.screenshot_path:

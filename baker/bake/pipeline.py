@@ -39,7 +39,7 @@ class BakeConfig:
 
 
 def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
-                direct_vpls=None, **solver_overrides) -> BakeConfig:
+                direct_vpls=None, preview_vpls=65_536, **solver_overrides) -> BakeConfig:
     """A preset's bake settings. texels: 'voxels' or 'lightcuts' (default:
     voxels for preview, lightcuts for default and high)."""
     texels = texels or ("voxels" if preset == "preview" else "lightcuts")
@@ -48,7 +48,9 @@ def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=
     solver = solver_config(preset, **solver_overrides)
     lc = lightcuts_config(preset, epsilon=epsilon, direct_vpls=direct_vpls, seed=solver.seed) \
         if texels == "lightcuts" else None
-    return BakeConfig(solver, uv, texel_density, preset, lc)
+    if preview_vpls is None or preview_vpls < 0:
+        raise ConfigError(f"the preview's VPL count must be >= 0 (got {preview_vpls})")
+    return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls))
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,

@@ -1,0 +1,179 @@
+"""Progressive instant radiosity on the GPU (docs/design.md section 9): the
+bake's ordered VPL list, `per_frame` VPLs a frame; each VPL renders the
+distances around it into a cube (six faces side by side), then adds its
+light, with the CPU's bounded near-field term, to a float accumulation
+buffer at every pixel of a G-buffer of the view; the picture is the
+running mean (emission and albedo applied once): it converges to the CPU's
+instant radiosity over the same list (baker/render/instant_radiosity.py).
+A camera move restarts it. Directional (sky) VPLs and punctual lights are
+not in the GPU preview (said when the bake holds them).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .camera import look_at, perspective, view_of
+
+FACES = [((1, 0, 0), (0, -1, 0)), ((-1, 0, 0), (0, -1, 0)), ((0, 1, 0), (0, 0, 1)), ((0, -1, 0), (0, 0, -1)),
+         ((0, 0, 1), (0, -1, 0)), ((0, 0, -1), (0, -1, 0))]  # +x -x +y -y +z -z: forward and up
+
+
+class Preview:
+    """Accumulates VPLs for one camera and image size."""
+
+    def __init__(self, ctx, renderer, camera, width, height, shadow_size=256, per_frame=16):
+        import moderngl
+        from .context import build_program
+        bake = renderer.bake
+        if bake.vpls is None or len(bake.vpls) == 0:
+            from baker.errors import VoxgiError
+            raise VoxgiError("this bake holds no VPL list for the preview (bake it again with this voxgi)")
+        self.ctx, self.r, self.camera = ctx, renderer, camera
+        self.size = (width, height)
+        self.per_frame = per_frame
+        self.vpls = bake.vpls
+        self.area_only = np.nonzero(self.vpls.kind == 0)[0]
+        self.skipped = int(len(self.vpls) - len(self.area_only))
+        self.g_prog = build_program(ctx, "gbuffer.vert", "gbuffer.frag")
+        self.s_prog = build_program(ctx, "shadow.vert", "shadow.frag")
+        self.p_prog = build_program(ctx, "preview.vert", "preview.frag")
+        self.g_vao = ctx.vertex_array(self.g_prog, [(renderer.vbo, "3f 2f 8x", "in_position", "in_uv0")])
+        self.s_vao = ctx.vertex_array(self.s_prog, [(renderer.vbo, "3f 16x", "in_position")])
+        self.p_vao = ctx.vertex_array(self.p_prog, [])
+        w, h = width, height
+        self.gtex = [ctx.texture((w, h), 4, dtype="f4") for _ in range(4)]
+        for t in self.gtex:
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.gdepth = ctx.depth_renderbuffer((w, h))
+        self.gfbo = ctx.framebuffer(self.gtex, self.gdepth)
+        self.shadow = ctx.texture((6 * shadow_size, shadow_size), 1, dtype="f4")
+        self.shadow.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.sdepth = ctx.depth_renderbuffer((6 * shadow_size, shadow_size))
+        self.sfbo = ctx.framebuffer([self.shadow], self.sdepth)
+        self.shadow_size = shadow_size
+        self.accum = ctx.texture((w, h), 4, dtype="f4")
+        self.afbo = ctx.framebuffer([self.accum])
+        lo, hi = bake.scene.bounds()
+        self.extent = float(np.linalg.norm(hi - lo)) or 1.0
+        self.used = 0
+        self.frames = 0
+        self._gbuffer()
+
+    def _gbuffer(self):
+        import moderngl
+        ctx, (w, h) = self.ctx, self.size
+        near, far = self.r.clip_range(self.camera)
+        vp = perspective(self.camera.yfov, w / h, near, far) @ view_of(self.camera)
+        self.gfbo.use()
+        self.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.viewport = (0, 0, w, h)
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        self.g_prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
+        mats = self.r.bake.scene.materials
+        for d in self.r.draws:
+            m = mats[d.material]
+            tex = self.r.textures.get(d.material)
+            for name, value in (("u_albedo", tuple(float(v) for v in m.albedo)),
+                                ("u_emission", tuple(float(v) for v in m.emission)),
+                                ("u_has_texture", tex is not None)):
+                if name in self.g_prog:
+                    self.g_prog[name].value = value
+            if tex is not None:
+                tex.use(3)
+                self.g_prog["u_texture"].value = 3
+            self.g_vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
+        self.afbo.use()
+        self.afbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.used = self.frames = 0
+
+    def restart(self, camera):
+        self.camera = camera
+        self._gbuffer()
+
+    def _faces(self, pos):
+        near = 1e-4 * self.extent
+        proj = perspective(math.pi / 2, 1.0, near, 4.0 * self.extent)
+        return [proj @ look_at(pos, f, u) for f, u in FACES]
+
+    def frame(self):
+        """Adds the next per_frame VPLs; False when the list is used up."""
+        import moderngl
+        ctx = self.ctx
+        idx = self.area_only[self.used:self.used + self.per_frame] if self.skipped else \
+            np.arange(self.used, min(self.used + self.per_frame, len(self.vpls)))
+        if len(idx) == 0:
+            return False
+        v = self.vpls
+        s = self.shadow_size
+        for k in idx:
+            pos = v.position[k]
+            faces = self._faces(pos)
+            self.sfbo.use()
+            self.sfbo.clear(1e30, 1e30, 1e30, 1e30, depth=1.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+            self.s_prog["u_light"].value = tuple(float(x) for x in pos)
+            for f, m in enumerate(faces):
+                ctx.viewport = (f * s, 0, s, s)
+                self.s_prog["u_view_proj"].write(m.T.astype(np.float32).tobytes())
+                self.s_vao.render(moderngl.TRIANGLES)
+            self.afbo.use()
+            ctx.viewport = (0, 0, *self.size)
+            ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ONE, moderngl.ONE
+            p = self.p_prog
+            self.gtex[0].use(0)
+            self.gtex[1].use(1)
+            self.shadow.use(2)
+            p["u_position"].value, p["u_normal"].value, p["u_shadow"].value = 0, 1, 2
+            p["u_light"].value = tuple(float(x) for x in pos)
+            p["u_light_normal"].value = tuple(float(x) for x in v.normal[k])
+            p["u_power"].value = tuple(float(x) for x in v.power[k])
+            p["u_area"].value = float(v.area[k])
+            p["u_bias"].value = 2e-3 * self.extent
+            p["u_face"].write(np.stack([m.T for m in faces]).astype(np.float32).tobytes())
+            self.p_vao.render(moderngl.TRIANGLES, vertices=3)
+            ctx.disable(moderngl.BLEND)
+        self.used += len(idx)
+        self.frames += 1
+        return True
+
+    def image(self) -> np.ndarray:
+        """The running mean as linear radiance (height, width, 3) float32,
+        rows top to bottom: emission + albedo / pi x (sum of VPL light) /
+        draws."""
+        w, h = self.size
+        acc = np.frombuffer(self.accum.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        alb = np.frombuffer(self.gtex[2].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        em = np.frombuffer(self.gtex[3].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        draws = max(1, self.used)
+        return np.ascontiguousarray(em + alb / math.pi * acc / draws, np.float32)
+
+    def show(self, exposure, width, height):
+        """Draws the running mean, tone-mapped, into the bound framebuffer."""
+        import moderngl
+        from .context import build_program
+        if not hasattr(self, "show_prog"):
+            self.show_prog = build_program(self.ctx, "preview_show.vert", "preview_show.frag")
+            self.show_vao = self.ctx.vertex_array(self.show_prog, [])
+        ctx, p = self.ctx, self.show_prog
+        ctx.viewport = (0, 0, width, height)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        self.accum.use(0)
+        self.gtex[2].use(1)
+        self.gtex[3].use(2)
+        p["u_accum"].value, p["u_albedo"].value, p["u_emission"].value = 0, 1, 2
+        p["u_draws"].value = float(max(1, self.used))
+        p["u_exposure"].value = float(exposure)
+        self.show_vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def release(self):
+        if hasattr(self, "show_prog"):
+            self.show_vao.release()
+            self.show_prog.release()
+        for o in (self.g_vao, self.s_vao, self.p_vao, self.g_prog, self.s_prog, self.p_prog, *self.gtex,
+                  self.gdepth, self.gfbo, self.shadow, self.sdepth, self.sfbo, self.accum, self.afbo):
+            o.release()
