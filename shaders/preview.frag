@@ -1,16 +1,22 @@
 #version 330 core
-// One VPL's light at every pixel of the G-buffer, added to the accumulation buffer (docs/design.md
-// section 7): power x V cos_l cos_p / (pi r^2 + A), the CPU's bounded near-field term; V from the
-// VPL's cube of distances (six faces side by side in one texture).
+// One light's irradiance at every pixel of the G-buffer, added to an accumulation buffer
+// (docs/design.md section 7), the same formulas as the CPU:
+//   kind 0, a VPL:        power x V cos_l cos_p / (pi r^2 + A)  (the bounded near-field term)
+//   kind 1, a direction:  power x V cos_p                        (the sky's VPLs, a sun)
+//   kind 2, a point:      power x V cos_p / r^2                  (kind 3, a spot: times glTF's falloff)
+// V: for kinds 0, 2, 3 from the light's cube of distances (six faces side by side in one texture);
+// for kind 1 from one orthographic map of distances along the direction (face 0).
 uniform sampler2D u_position;
 uniform sampler2D u_normal;
 uniform sampler2D u_shadow;
-uniform vec3 u_light;
-uniform vec3 u_light_normal;
+uniform int u_kind;
+uniform vec3 u_light;        // position (kind 1: unused)
+uniform vec3 u_light_normal; // the VPL's normal; kind 1: towards the light; kind 3: the spot's axis
 uniform vec3 u_power;
 uniform float u_area;
+uniform vec2 u_cones;        // spot: cos of the inner and outer cone
 uniform mat4 u_face[6];
-uniform float u_bias;      // scene units, plus a fraction of the distance
+uniform float u_bias;        // scene units, plus a fraction of the distance
 in vec2 v_uv;
 out vec4 f_color;
 const float PI = 3.14159265358979;
@@ -23,21 +29,43 @@ int face_of(vec3 d) {
     return d.z >= 0.0 ? 4 : 5;
 }
 
+float shadow_distance(int f, vec3 p) {
+    vec4 c = u_face[f] * vec4(p, 1.0);
+    vec2 uv = clamp(c.xy / c.w * 0.5 + 0.5, 0.0, 1.0);
+    return texture(u_shadow, vec2((float(f) + uv.x) / 6.0, uv.y)).r;
+}
+
 void main() {
     vec4 p = texture(u_position, v_uv);
     if (p.w == 0.0) discard;
     vec3 n = texture(u_normal, v_uv).xyz;
+    if (u_kind == 1) {
+        float cp = dot(n, u_light_normal);
+        if (cp <= COS_MIN) discard;
+        // the map stores each texel's nearest surface along the direction, measured towards the light
+        float along = dot(p.xyz, u_light_normal);
+        if (shadow_distance(0, p.xyz) > along + u_bias / max(cp, 0.1)) discard;
+        f_color = vec4(u_power * cp, 1.0);
+        return;
+    }
     vec3 d = u_light - p.xyz;
     float r2 = dot(d, d);
     float r = sqrt(r2);
     vec3 w = d / r;
     float cp = dot(n, w);
-    float cl = -dot(u_light_normal, w);
-    if (cp <= COS_MIN || cl <= COS_MIN) discard;
-    int f = face_of(-d);
-    vec4 c = u_face[f] * vec4(p.xyz, 1.0);
-    vec2 uv = clamp(c.xy / c.w * 0.5 + 0.5, 0.0, 1.0);
-    float stored = texture(u_shadow, vec2((float(f) + uv.x) / 6.0, uv.y)).r;
-    if (stored < r - u_bias - 0.01 * r) discard;
-    f_color = vec4(u_power * (cl * cp / (PI * r2 + u_area)), 1.0);
+    if (cp <= COS_MIN) discard;
+    float g;
+    if (u_kind == 0) {
+        float cl = -dot(u_light_normal, w);
+        if (cl <= COS_MIN) discard;
+        g = cl * cp / (PI * r2 + u_area);
+    } else {
+        g = cp / r2;
+        if (u_kind == 3) {
+            float a = clamp((-dot(w, u_light_normal) - u_cones.y) / max(u_cones.x - u_cones.y, 1e-4), 0.0, 1.0);
+            g *= a * a;
+        }
+    }
+    if (shadow_distance(face_of(-d), p.xyz) < r - u_bias - 0.01 * r) discard;
+    f_color = vec4(u_power * g, 1.0);
 }

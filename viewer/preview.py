@@ -5,8 +5,10 @@ light, with the CPU's bounded near-field term, to a float accumulation
 buffer at every pixel of a G-buffer of the view; the picture is the
 running mean (emission and albedo applied once): it converges to the CPU's
 instant radiosity over the same list (baker/render/instant_radiosity.py).
-A camera move restarts it. Directional (sky) VPLs and punctual lights are
-not in the GPU preview (said when the bake holds them).
+A camera move restarts it. The sky's directional VPLs use an orthographic
+map of distances along their direction; the scene's punctual lights
+(point, spot, sun) are added exactly once per restart, as the CPU adds
+them to every frame.
 """
 from __future__ import annotations
 
@@ -34,8 +36,7 @@ class Preview:
         self.size = (width, height)
         self.per_frame = per_frame
         self.vpls = bake.vpls
-        self.area_only = np.nonzero(self.vpls.kind == 0)[0]
-        self.skipped = int(len(self.vpls) - len(self.area_only))
+        self.lights = bake.scene.lights
         self.g_prog = build_program(ctx, "gbuffer.vert", "gbuffer.frag")
         self.s_prog = build_program(ctx, "shadow.vert", "shadow.frag")
         self.p_prog = build_program(ctx, "preview.vert", "preview.frag")
@@ -55,6 +56,8 @@ class Preview:
         self.shadow_size = shadow_size
         self.accum = ctx.texture((w, h), 4, dtype="f4")
         self.afbo = ctx.framebuffer([self.accum])
+        self.punct = ctx.texture((w, h), 4, dtype="f4")
+        self.pfbo = ctx.framebuffer([self.punct])
         lo, hi = bake.scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
         self.used = 0
@@ -87,6 +90,15 @@ class Preview:
         self.afbo.use()
         self.afbo.clear(0.0, 0.0, 0.0, 0.0)
         self.used = self.frames = 0
+        self.pfbo.use()
+        self.pfbo.clear(0.0, 0.0, 0.0, 0.0)
+        kinds = {"directional": 1, "point": 2, "spot": 3}
+        for light in self.lights:
+            k = kinds[light.kind]
+            towards = -np.asarray(light.direction, float) if k == 1 else np.asarray(light.direction, float)
+            self._add(self.pfbo, k, np.asarray(light.position, float), towards,
+                      np.asarray(light.intensity, float), 0.0,
+                      (math.cos(light.inner_cone), math.cos(light.outer_cone)))
 
     def restart(self, camera):
         self.camera = camera
@@ -97,46 +109,67 @@ class Preview:
         proj = perspective(math.pi / 2, 1.0, near, 4.0 * self.extent)
         return [proj @ look_at(pos, f, u) for f, u in FACES]
 
+    def _ortho(self, towards):
+        """The orthographic view of the scene from far along `towards`."""
+        lo, hi = self.r.bake.scene.bounds()
+        c = 0.5 * (lo + hi)
+        R = 0.5 * self.extent * 1.01
+        up = (0.0, 1.0, 0.0) if abs(towards[1]) < 0.9 else (1.0, 0.0, 0.0)
+        view = look_at(c + towards * 2 * R, -towards, up)
+        proj = np.zeros((4, 4))
+        proj[0, 0] = proj[1, 1] = 1.0 / R
+        proj[2, 2] = -2.0 / (4 * R)
+        proj[2, 3] = -1.0
+        proj[3, 3] = 1.0
+        return proj @ view
+
+    def _add(self, target, kind, pos, normal, power, area, cones=(1.0, 0.0)):
+        """Renders one light's shadow map, then adds its irradiance to `target`."""
+        import moderngl
+        ctx, s = self.ctx, self.shadow_size
+        self.sfbo.use()
+        directional = kind == 1
+        self.sfbo.clear(*((-1e30,) * 4 if directional else (1e30,) * 4), depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        self.s_prog["u_directional"].value = directional
+        self.s_prog["u_light"].value = tuple(float(x) for x in (normal if directional else pos))
+        faces = [self._ortho(np.asarray(normal, float))] * 6 if directional else self._faces(pos)
+        for f, m in enumerate(faces[:1] if directional else faces):
+            ctx.viewport = (f * s, 0, s, s)
+            self.s_prog["u_view_proj"].write(m.T.astype(np.float32).tobytes())
+            self.s_vao.render(moderngl.TRIANGLES)
+        target.use()
+        ctx.viewport = (0, 0, *self.size)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        p = self.p_prog
+        self.gtex[0].use(0)
+        self.gtex[1].use(1)
+        self.shadow.use(2)
+        p["u_position"].value, p["u_normal"].value, p["u_shadow"].value = 0, 1, 2
+        p["u_kind"].value = int(kind)
+        p["u_light"].value = tuple(float(x) for x in pos)
+        p["u_light_normal"].value = tuple(float(x) for x in normal)
+        p["u_power"].value = tuple(float(x) for x in power)
+        p["u_area"].value = float(area)
+        p["u_cones"].value = tuple(float(x) for x in cones)
+        # directions: two texels of the orthographic map (its texel is extent / size wide), more at grazing
+        # incidence, where one texel spans a larger step along the direction
+        p["u_bias"].value = 2.0 * self.extent / s if directional else 2e-3 * self.extent
+        p["u_face"].write(np.stack([m.T for m in faces]).astype(np.float32).tobytes())
+        self.p_vao.render(moderngl.TRIANGLES, vertices=3)
+        ctx.disable(moderngl.BLEND)
+
     def frame(self):
         """Adds the next per_frame VPLs; False when the list is used up."""
-        import moderngl
-        ctx = self.ctx
-        idx = self.area_only[self.used:self.used + self.per_frame] if self.skipped else \
-            np.arange(self.used, min(self.used + self.per_frame, len(self.vpls)))
+        idx = np.arange(self.used, min(self.used + self.per_frame, len(self.vpls)))
         if len(idx) == 0:
             return False
         v = self.vpls
-        s = self.shadow_size
         for k in idx:
-            pos = v.position[k]
-            faces = self._faces(pos)
-            self.sfbo.use()
-            self.sfbo.clear(1e30, 1e30, 1e30, 1e30, depth=1.0)
-            ctx.enable(moderngl.DEPTH_TEST)
-            ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-            self.s_prog["u_light"].value = tuple(float(x) for x in pos)
-            for f, m in enumerate(faces):
-                ctx.viewport = (f * s, 0, s, s)
-                self.s_prog["u_view_proj"].write(m.T.astype(np.float32).tobytes())
-                self.s_vao.render(moderngl.TRIANGLES)
-            self.afbo.use()
-            ctx.viewport = (0, 0, *self.size)
-            ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.ONE, moderngl.ONE
-            p = self.p_prog
-            self.gtex[0].use(0)
-            self.gtex[1].use(1)
-            self.shadow.use(2)
-            p["u_position"].value, p["u_normal"].value, p["u_shadow"].value = 0, 1, 2
-            p["u_light"].value = tuple(float(x) for x in pos)
-            p["u_light_normal"].value = tuple(float(x) for x in v.normal[k])
-            p["u_power"].value = tuple(float(x) for x in v.power[k])
-            p["u_area"].value = float(v.area[k])
-            p["u_bias"].value = 2e-3 * self.extent
-            p["u_face"].write(np.stack([m.T for m in faces]).astype(np.float32).tobytes())
-            self.p_vao.render(moderngl.TRIANGLES, vertices=3)
-            ctx.disable(moderngl.BLEND)
+            self._add(self.afbo, int(v.kind[k]), v.position[k], v.normal[k], v.power[k], v.area[k])
         self.used += len(idx)
         self.frames += 1
         return True
@@ -149,8 +182,9 @@ class Preview:
         acc = np.frombuffer(self.accum.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
         alb = np.frombuffer(self.gtex[2].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
         em = np.frombuffer(self.gtex[3].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        pun = np.frombuffer(self.punct.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
         draws = max(1, self.used)
-        return np.ascontiguousarray(em + alb / math.pi * acc / draws, np.float32)
+        return np.ascontiguousarray(em + alb / math.pi * (pun + acc / draws), np.float32)
 
     def show(self, exposure, width, height):
         """Draws the running mean, tone-mapped, into the bound framebuffer."""
@@ -165,7 +199,8 @@ class Preview:
         self.accum.use(0)
         self.gtex[2].use(1)
         self.gtex[3].use(2)
-        p["u_accum"].value, p["u_albedo"].value, p["u_emission"].value = 0, 1, 2
+        self.punct.use(3)
+        p["u_accum"].value, p["u_albedo"].value, p["u_emission"].value, p["u_punctual"].value = 0, 1, 2, 3
         p["u_draws"].value = float(max(1, self.used))
         p["u_exposure"].value = float(exposure)
         self.show_vao.render(moderngl.TRIANGLES, vertices=3)
@@ -175,5 +210,6 @@ class Preview:
             self.show_vao.release()
             self.show_prog.release()
         for o in (self.g_vao, self.s_vao, self.p_vao, self.g_prog, self.s_prog, self.p_prog, *self.gtex,
-                  self.gdepth, self.gfbo, self.shadow, self.sdepth, self.sfbo, self.accum, self.afbo):
+                  self.gdepth, self.gfbo, self.shadow, self.sdepth, self.sfbo, self.accum, self.afbo, self.punct,
+                  self.pfbo):
             o.release()
