@@ -1,7 +1,8 @@
 """Viewer benchmark: frame time of the walkthrough's lightmap view at
 1280x720 on this machine's OpenGL (llvmpipe where there is no GPU), drawn
 as the window draws it (tone-mapped, into an 8-bit framebuffer), over
-each of the bake's cameras.
+each of the bake's cameras; and the progressive preview's VPLs per second
+(a cube shadow map and a shading pass each) at the same size.
 
     python bench/viewer.py [--frames 100] [--scenes cornell_box walkthrough] [--json]
 """
@@ -24,6 +25,7 @@ def main():
     ap.add_argument("--height", type=int, default=720)
     ap.add_argument("--scenes", nargs="+", default=["cornell_box", "walkthrough"])
     ap.add_argument("--preset", default="preview")
+    ap.add_argument("--preview-frames", type=int, default=4, help="preview frames (of 16 VPLs) to time")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     from baker.bake import read_bake
@@ -57,14 +59,26 @@ def main():
         fbo.release()
         color.release()
         depth.release()
+        from viewer.preview import Preview
+        pv = Preview(ctx, r, bake.scene.cameras[0] if bake.scene.cameras else bake.scene.camera(None), args.width,
+                     args.height, per_frame=16)
+        pv.frame()
+        ctx.finish()
+        t = time.perf_counter()
+        n_frames = max(1, args.preview_frames)
+        for _ in range(n_frames):
+            pv.frame()
+        ctx.finish()
+        vps = 16 * n_frames / (time.perf_counter() - t)
+        pv.release()
         r.release()
         ms = [1000 * t for t in times]
         rows.append([scene, f"{len(bake.scene.vertices) // 3:,}", len(bake.pages), len(times),
-                     f"{min(ms):.1f}-{max(ms):.1f}", f"{1000 / max(ms):.0f}-{1000 / min(ms):.0f}"])
+                     f"{min(ms):.1f}-{max(ms):.1f}", f"{1000 / max(ms):.0f}-{1000 / min(ms):.0f}", f"{vps:.0f}"])
     info = ctx.info
     emit(args, f"Walkthrough frame time at {args.width}x{args.height} ({info['GL_RENDERER']}, "
                f"{os.environ.get('LP_NUM_THREADS', 'all')} llvmpipe threads)", rows,
-         ["scene", "triangles", "pages", "cameras", "ms/frame (min-max over cameras)", "fps"])
+         ["scene", "triangles", "pages", "cameras", "ms/frame (min-max over cameras)", "fps", "preview VPLs/s"])
 
 
 if __name__ == "__main__":

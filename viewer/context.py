@@ -14,6 +14,8 @@ def headless_context(require: int = 330):
 
     import moderngl
     try:
+        if os.environ.get("VOXGI_NO_EGL") == "1":  # as if EGL were missing (tests the fallback)
+            raise RuntimeError("EGL disabled by VOXGI_NO_EGL=1")
         return moderngl.create_context(standalone=True, backend="egl", require=require)
     except Exception as e:  # moderngl raises plain Exceptions with EGL codes
         why = str(e).splitlines()[0] if str(e) else type(e).__name__
