@@ -39,18 +39,10 @@ def rng(values, fmt="{:.2f}"):
 
 def image_error(path, reference, size):
     from baker.bake import read_bake, render_bake
-    from baker.render.compare import LUMINANCE
+    from baker.render.compare import LUMINANCE, lit_pixels
     img = render_bake(read_bake(path), 0, size, size) @ LUMINANCE
     ref = reference @ LUMINANCE
-    lamp = ref > 0.5 * ref.max()
-    for _ in range(2):
-        g = lamp.copy()
-        g[1:] |= lamp[:-1]
-        g[:-1] |= lamp[1:]
-        g[:, 1:] |= lamp[:, :-1]
-        g[:, :-1] |= lamp[:, 1:]
-        lamp = g
-    lit = ~lamp & (ref > 0)
+    lit = lit_pixels(ref)
     return float(np.sqrt(np.mean((img[lit] - ref[lit]) ** 2)) / ref[lit].mean())
 
 

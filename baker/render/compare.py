@@ -28,10 +28,9 @@ class Comparison:
         return float((np.abs(self.blocks - 1) <= tol).mean()) if len(self.blocks) else 1.0
 
 
-def compare(image, reference, block: int = 8, lamp_rings: int = 2) -> Comparison:
-    """image, reference: (h, w, 3) linear radiance of the same view."""
-    img = np.asarray(image, np.float64) @ LUMINANCE
-    ref = np.asarray(reference, np.float64) @ LUMINANCE
+def lit_pixels(ref, lamp_rings: int = 2) -> np.ndarray:
+    """(h, w) bool: the pixels of a luminance image that are lit and not the
+    lamp (over half the brightest) or the rings of pixels its edge covers."""
     lamp = ref > 0.5 * ref.max()
     for _ in range(lamp_rings):
         grow = lamp.copy()
@@ -40,7 +39,14 @@ def compare(image, reference, block: int = 8, lamp_rings: int = 2) -> Comparison
         grow[:, 1:] |= lamp[:, :-1]
         grow[:, :-1] |= lamp[:, 1:]
         lamp = grow
-    lit = ~lamp & (ref > 0)
+    return ~lamp & (ref > 0)
+
+
+def compare(image, reference, block: int = 8, lamp_rings: int = 2) -> Comparison:
+    """image, reference: (h, w, 3) linear radiance of the same view."""
+    img = np.asarray(image, np.float64) @ LUMINANCE
+    ref = np.asarray(reference, np.float64) @ LUMINANCE
+    lit = lit_pixels(ref, lamp_rings)
     if not lit.any():
         return Comparison(1.0, np.zeros(0), 0)
     ratios = []
