@@ -4,7 +4,7 @@
 // H the lightmap irradiance (bilinear, or bicubic B-spline), then exposure, the ACES filmic
 // curve (Narkowicz 2015) and the sRGB transfer curve; or linear radiance for snapshots.
 // Debug views: 1 lightmap only (H / pi), 2 albedo only, 3 texel-density checker, 4 pages.
-// MODE, BICUBIC and TONEMAP are compile-time constants (the renderer builds one program per
+// MODE, BICUBIC, TONEMAP and TEXTURED are compile-time constants (the renderer builds one program per
 // combination it uses): no branch on them is left for the fragment loop (llvmpipe pays for those).
 #ifndef MODE
 #define MODE 0
@@ -15,9 +15,11 @@
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
+#ifndef TEXTURED
+#define TEXTURED 0
+#endif
 uniform vec3 u_albedo;
 uniform vec3 u_emission;
-uniform bool u_has_texture;
 uniform sampler2D u_texture;
 uniform sampler2DArray u_pages;
 uniform int u_page;
@@ -70,7 +72,9 @@ void main() {
 #endif
     H = max(H, 0.0);
     vec3 albedo = u_albedo;
-    if (u_has_texture) albedo *= texture(u_texture, v_uv0).rgb;
+#if TEXTURED
+    albedo *= texture(u_texture, v_uv0).rgb;
+#endif
 #if MODE == 1
     vec3 L = H / PI;
 #elif MODE == 2

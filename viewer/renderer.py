@@ -69,13 +69,13 @@ class Renderer:
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
 
-    def variant(self, mode, bicubic, tonemap):
+    def variant(self, mode, bicubic, tonemap, textured=False):
         """The program (and its vertex array) of one view, built on first use."""
-        key = (MODES.index(mode), bool(bicubic), bool(tonemap))
+        key = (MODES.index(mode), bool(bicubic), bool(tonemap), bool(textured))
         if key not in self.variants:
             from .context import build_program
             prog = build_program(self.ctx, "lightmap.vert", "lightmap.frag",
-                                 {"MODE": key[0], "BICUBIC": key[1], "TONEMAP": key[2]})
+                                 {"MODE": key[0], "BICUBIC": key[1], "TONEMAP": key[2], "TEXTURED": key[3]})
             names = [a for a in ATTRIBUTES if a in prog]  # a view may not read every attribute: skip its bytes
             fmt = " ".join(ATTRIBUTES[a][0 if a in names else 1] for a in ATTRIBUTES)
             self.variants[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, fmt, *names)]))
@@ -96,21 +96,21 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
-        prog, vao = self.variant(mode, bicubic, tonemap)
-        prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
-        if "u_exposure" in prog:
-            prog["u_exposure"].value = float(exposure)
         self.pages.use(0)
-        for name, unit in (("u_pages", 0), ("u_texture", 1)):
-            if name in prog:
-                prog[name].value = unit
         mats = self.bake.scene.materials
+        current = None
         for d in self.draws:
-            m = mats[d.material]
             tex = self.textures.get(d.material)
+            prog, vao = self.variant(mode, bicubic, tonemap, tex is not None)
+            if prog is not current:  # a program's shared settings once per switch
+                current = prog
+                prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
+                for name, value in (("u_exposure", float(exposure)), ("u_pages", 0), ("u_texture", 1)):
+                    if name in prog:
+                        prog[name].value = value
+            m = mats[d.material]
             for name, value in (("u_albedo", tuple(float(v) for v in m.albedo)),
-                                ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
-                                ("u_has_texture", tex is not None)):
+                                ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page)):
                 if name in prog:  # (a view may not read it)
                     prog[name].value = value
             if tex is not None:
