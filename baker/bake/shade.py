@@ -19,30 +19,40 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import closest_hit
-from ..render.camera import camera_array, primary_ray, render_bands
+from ..render.camera import camera_array, primary_ray, render_bands, subpixel
 from ..render.voxelview import SUBPIXELS
 
 
 @njit(cache=True, inline="always")
-def bilinear(pages, p, u, v):
-    """Bilinear lookup of page p at (u, v) (texel centres at (i + 0.5) /
-    size; clamped to the edge, as the file's sampler)."""
-    n = pages.shape[1]
-    x = u * n - 0.5
-    y = v * n - 0.5
+def bilinear_flat(data, base, w, h, x, y, wrap):
+    """Bilinear lookup at (x, y) in texel units (texel i's centre at
+    i + 0.5) of the w x h RGB image stored row-major in data[base:]
+    ((texels, 3)); edges repeated (wrap) or clamped."""
+    x -= 0.5
+    y -= 0.5
     x0 = int(math.floor(x))
     y0 = int(math.floor(y))
     fx, fy = x - x0, y - y0
     r0 = r1 = r2 = 0.0
     for dy in range(2):
         for dx in range(2):
-            w = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
-            xi = min(max(x0 + dx, 0), n - 1)
-            yi = min(max(y0 + dy, 0), n - 1)
-            r0 += w * pages[p, yi, xi, 0]
-            r1 += w * pages[p, yi, xi, 1]
-            r2 += w * pages[p, yi, xi, 2]
+            wt = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
+            if wrap:
+                xi, yi = (x0 + dx) % w, (y0 + dy) % h
+            else:
+                xi, yi = min(max(x0 + dx, 0), w - 1), min(max(y0 + dy, 0), h - 1)
+            k = base + yi * w + xi
+            r0 += wt * data[k, 0]
+            r1 += wt * data[k, 1]
+            r2 += wt * data[k, 2]
     return r0, r1, r2
+
+
+@njit(cache=True, inline="always")
+def bilinear(pages_flat, size, p, u, v):
+    """Page p (size x size, pages_flat = pages.reshape(-1, 3)) at (u, v),
+    clamped to the edge as the file's sampler."""
+    return bilinear_flat(pages_flat, p * size * size, size, size, u * size, v * size, False)
 
 
 @njit(cache=True, inline="always")
@@ -57,24 +67,14 @@ def albedo_bilinear(surf, tri, b1, b2):
     uv = surf.uvs
     w, h = surf.tex_size[mat, 0], surf.tex_size[mat, 1]
     b0 = 1.0 - b1 - b2
-    x = (b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]) * w - 0.5
-    y = (b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]) * h - 0.5
-    x0 = int(math.floor(x))
-    y0 = int(math.floor(y))
-    fx, fy = x - x0, y - y0
-    t0 = t1 = t2 = 0.0
-    for dy in range(2):
-        for dx in range(2):
-            wt = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
-            k = off + ((y0 + dy) % h) * w + (x0 + dx) % w
-            t0 += wt * surf.tex_data[k, 0]
-            t1 += wt * surf.tex_data[k, 1]
-            t2 += wt * surf.tex_data[k, 2]
+    x = (b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]) * w
+    y = (b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]) * h
+    t0, t1, t2 = bilinear_flat(surf.tex_data, off, w, h, x, y, True)
     return r * t0, g * t1, b * t2
 
 
 @njit(cache=True, parallel=True)
-def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
+def _rows(bvh, surf, uv1, page, pages_flat, size, cam, width, height, row0, row1, out):
     n = (row1 - row0) * width
     w = 1.0 / (SUBPIXELS * SUBPIXELS)
     inv_pi = 1.0 / math.pi
@@ -84,8 +84,7 @@ def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
         x = k % width
         r0 = r1 = r2 = 0.0
         for sub in range(SUBPIXELS * SUBPIXELS):
-            fx = (sub % SUBPIXELS + 0.5) / SUBPIXELS
-            fy = (sub // SUBPIXELS + 0.5) / SUBPIXELS
+            fx, fy = subpixel(sub, SUBPIXELS)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
             t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf, True)
             if j < 0:
@@ -94,7 +93,7 @@ def _rows(bvh, surf, uv1, page, pages, cam, width, height, row0, row1, out):
             b0 = 1.0 - u - v
             lu = b0 * uv1[tri, 0, 0] + u * uv1[tri, 1, 0] + v * uv1[tri, 2, 0]
             lv = b0 * uv1[tri, 0, 1] + u * uv1[tri, 1, 1] + v * uv1[tri, 2, 1]
-            h0, h1, h2 = bilinear(pages, page[tri], lu, lv)
+            h0, h1, h2 = bilinear(pages_flat, size, page[tri], lu, lv)
             a0, a1, a2 = albedo_bilinear(surf, tri, u, v)
             m = surf.tri_material[tri]
             r0 += a0 * inv_pi * h0 + surf.emission[m, 0]
@@ -115,5 +114,6 @@ def render_bake(bake, camera=None, width=256, height=256, progress=None, bvh=Non
     cam = camera if isinstance(camera, Camera) else bake.scene.camera(camera, bvh)
     return render_bands(_rows, width, height,
                         (bvh.arrays, surf.arrays, np.ascontiguousarray(bake.uv1, np.float64), bake.page,
-                         np.ascontiguousarray(bake.pages, np.float32), camera_array(cam, width, height),
+                         np.ascontiguousarray(bake.pages, np.float32).reshape(-1, 3), int(bake.pages.shape[1]),
+                         camera_array(cam, width, height),
                          int(width), int(height)), progress)

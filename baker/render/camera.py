@@ -36,6 +36,13 @@ def primary_ray(cam, x, y, sx, sy, width, height):
     return cam[0, 0], cam[0, 1], cam[0, 2], dx / ln, dy / ln, dz / ln
 
 
+@njit(cache=True, inline="always")
+def subpixel(sub, per_axis):
+    """Offset (fx, fy) in the pixel of sample `sub` of a per_axis x
+    per_axis stratified pattern (cell centres)."""
+    return (sub % per_axis + 0.5) / per_axis, (sub // per_axis + 0.5) / per_axis
+
+
 BAND_SAMPLES = 1 << 18  # camera samples per band: a fraction of a second, so Ctrl-C and the bar respond
 
 

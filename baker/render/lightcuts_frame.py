@@ -21,7 +21,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.surfaces import albedo_at, sky_radiance
-from .camera import primary_ray
+from .camera import primary_ray, subpixel
 
 AA = 4                 # the edge pixels' pattern: AA x AA
 NORMAL_COS = 0.9
@@ -47,8 +47,7 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
     for i in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
         x, y = pix[i] % width, pix[i] // width
-        fx = (sub[i] % per_axis + 0.5) / per_axis
-        fy = (sub[i] // per_axis + 0.5) / per_axis
+        fx, fy = subpixel(sub[i], per_axis)
         ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
         t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:

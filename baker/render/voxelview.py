@@ -11,7 +11,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import closest_hit, hit_normal
 from ..voxels.lookup import voxel_of_hit
-from .camera import primary_ray, render_bands
+from .camera import primary_ray, render_bands, subpixel
 
 
 SUBPIXELS = 4  # per axis: the pixel's value is the mean over SUBPIXELS^2 stratified points (a box filter, as the
@@ -29,8 +29,7 @@ def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plan
         x = k % width
         r0 = r1 = r2 = 0.0
         for sub in range(SUBPIXELS * SUBPIXELS):
-            fx = (sub % SUBPIXELS + 0.5) / SUBPIXELS
-            fy = (sub // SUBPIXELS + 0.5) / SUBPIXELS
+            fx, fy = subpixel(sub, SUBPIXELS)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
             t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
             if j < 0:
