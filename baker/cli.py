@@ -16,6 +16,8 @@ import numpy as np
 
 from .errors import VoxgiError, VoxgiWarning
 
+SPP_CAP = 1 << 20  # pathtrace: the most samples per pixel --noise or --time-limit take unless --spp says
+
 EPILOG = """examples:
   voxbake scenes
   voxbake info cornell_box
@@ -156,8 +158,17 @@ def cmd_render(args):
     _check_common(args)
     if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
+    adaptive = args.time_limit is not None or args.noise is not None
+    if args.spp is None:
+        args.spp = SPP_CAP if adaptive else 64
     if args.spp < 1:
         raise VoxgiError(f"--spp must be at least 1 (got {args.spp})")
+    if args.time_limit is not None and not args.time_limit > 0:
+        raise VoxgiError(f"--time-limit must be a positive number of seconds (got {args.time_limit})")
+    if args.noise is not None and not args.noise > 0:
+        raise VoxgiError(f"--noise must be a positive fraction, e.g. 0.02 for 2% (got {args.noise})")
+    if adaptive and args.method != "pathtrace":
+        raise VoxgiError("--time-limit and --noise apply to --method pathtrace")
     config = _render_config(args) if args.method in ("voxels", "lightcuts", "instant-radiosity") else None
     stats = Stats("render " + args.method)
     with threads(args.threads):
@@ -218,10 +229,19 @@ def cmd_render(args):
             print(f"{irs['frames']} frames of {args.vpls_per_frame} VPLs (last change {irs['change']:.2e})",
                   file=sys.stderr)
         elif args.method == "pathtrace":
-            from .render.pathtrace import render_pathtrace
-            with stats.stage("pathtrace"), bar(args.height, f"path tracing {args.spp} spp", "row") as b:
-                image = render_pathtrace(tree, surf, cam, args.width, args.height, args.spp, args.seed, b.update)
-            stats.count(spp=args.spp, camera_paths=args.width * args.height * args.spp)
+            from .render.pathtrace import pathtrace
+            total = None if adaptive else args.width * args.height * args.spp
+            what = f"{args.spp} spp" if not adaptive else "until " + " or ".join(
+                ([f"{args.noise:.2%} noise"] if args.noise else []) + ([f"{args.time_limit:g} s"] if args.time_limit
+                                                                      else []))
+            with stats.stage("pathtrace"), bar(total, f"path tracing {what}", "sample") as b:
+                pt = pathtrace(tree, surf, cam, args.width, args.height, args.spp, args.seed, args.time_limit,
+                               args.noise, b.update)
+            image = pt.image
+            stats.count(spp=pt.spp, camera_paths=args.width * args.height * pt.spp, noise_estimate=pt.noise,
+                        stopped_by=pt.stopped, samples_per_second=args.width * args.height * pt.spp / pt.seconds)
+            print(f"{pt.spp} spp, estimated noise {pt.noise:.2%} (relative RMSE), stopped by "
+                  f"{dict(spp='--spp', noise='--noise', time='--time-limit')[pt.stopped]}", file=sys.stderr)
         else:
             from .render.voxelview import render_voxels
             from .solve import solve
@@ -391,8 +411,9 @@ def build_parser():
     p = sub.add_parser("render", help="render an image: reference path tracer or the direct voxel view",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Render one camera of a scene.\n\n"
-                                   "  pathtrace  reference path tracer (NEE + MIS, Russian roulette): unbiased,\n"
-                                   "             the yardstick for the other methods\n"
+                                   "  pathtrace  reference path tracer (NEE + MIS, Russian roulette, scrambled Sobol\n"
+                                   "             samples): unbiased, the yardstick for the other methods;\n"
+                                   "             --noise and --time-limit stop it when it is good enough\n"
                                    "  voxels     the voxel GI solution shown directly: each visible point takes\n"
                                    "             its voxel's outgoing radiance (the thesis's 'direct voxel view')\n"
                                    "  lightcuts  the quality frame: the voxel solution as virtual point lights,\n"
@@ -414,7 +435,15 @@ def build_parser():
                    help="instant-radiosity: stop when a frame changes the image by less than this (relative)")
     p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
     p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
-    p.add_argument("--spp", type=int, default=64, help="pathtrace: samples per pixel (default 64)")
+    p.add_argument("--spp", type=int, default=None,
+                   help=f"pathtrace: samples per pixel (default 64; with --noise or --time-limit the most to take, "
+                        f"default {SPP_CAP})")
+    p.add_argument("--noise", type=float, default=None, metavar="TARGET",
+                   help="pathtrace: stop when the estimated relative RMSE of the image falls to TARGET (0.02: 2%%); "
+                        "the estimate comes from two halves of each pixel's samples, over the pixels that do "
+                        "not see a lamp directly")
+    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                   help="pathtrace: stop after about this many seconds (of path tracing)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same image, any thread count)")
     p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
     p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")

@@ -26,6 +26,9 @@ def test_bad_settings_are_refused_before_work(tmp_path):
         (["--fov", "200"], "--fov must lie between 0 and 180"),
         (["--method", "voxels", "--photons", "-1"], "invalid solver setting"),
         (["--sky", "1,-1,1"], "must not be negative"),
+        (["--noise", "0"], "--noise must be a positive fraction"),
+        (["--time-limit", "-1"], "--time-limit must be a positive number"),
+        (["--method", "voxels", "--noise", "0.02"], "apply to --method pathtrace"),
     ]
     for extra, message in cases:
         r = voxbake("render", "cornell_box", "-o", out, *extra)

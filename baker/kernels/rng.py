@@ -34,10 +34,7 @@ def rand01(seed, index, dim):
 STREAM_PHOTON_ROTATION = 0x5EED      # index; dims 0..7: the photons' Cranley-Patterson rotation (photons.py)
 STREAM_LINE_OFFSETS = 7              # dims 7, 8: a family's line offsets mu, mu' ...
 LINE_OFFSET_BOUNCE_STRIDE = 1_000_003  # ... at index bounce * stride + family (propagate.py)
-STREAM_PIXEL_JITTER = 1_000_001      # dims (and +1): a camera sample's position in its pixel; index pixel * spp + s
-PATH_DIMS_PER_BOUNCE = 16            # a path vertex at depth k draws dims 16 k + ...
-PATH_DIM_LIGHT = 0                   # ... 0, 1, 2: the emitter point for next-event estimation
-PATH_DIM_BOUNCE = 3                  # ... 3, 4: the next direction
-PATH_DIM_ROULETTE = 5                # ... 5: Russian roulette
+STREAM_ROULETTE = 0xD1CE              # the path tracer's Russian roulette: seed mixed with pixel + this; index
+                                     # the sample, dim the depth (its other numbers: kernels/sobol.py groups)
 STREAM_AUDIT_FAMILIES = 77           # index; dim i: the audit's i-th family (audit.py)
 STREAM_AUDIT_VOXELS = 1000           # index 1000 + family; dim i: the audit's i-th voxel of that family

@@ -7,31 +7,49 @@ scene/surfaces.py that the photons use as well.
 Radiance along a camera ray: L = L_e + integral of (rho / pi) L_in cos.
 One-sided triangles are black absorbers from behind (docs/design.md section 2);
 emitters emit from their front side (both sides when double-sided).
-Random numbers come from (seed, pixel * spp + sample, dimension), so the
-image does not depend on the thread count.
+
+Sampling: a path's choices come in groups of four numbers, each group
+from its own Owen-scrambled four-dimensional Sobol sequence per pixel
+(kernels/sobol.py): the position in the pixel with the first vertex's
+emitter point, then each next direction with the emitter point of the
+vertex it leads to. A pixel's samples are stratified in each group. The numbers are a pure
+function of (seed, pixel, sample, pair): the image does not depend on the
+thread count, nor on how the samples are split into passes.
+
+Noise: the even and the odd samples of each pixel are summed apart; half
+their difference estimates the error of the full mean, which is what
+`--noise` stops on and what the stats report.
 """
 from __future__ import annotations
 
 import math
+import time
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.rng import (PATH_DIM_BOUNCE, PATH_DIM_LIGHT, PATH_DIM_ROULETTE, PATH_DIMS_PER_BOUNCE,
-                           STREAM_PIXEL_JITTER, rand01)
+from ..kernels.rng import STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
+from ..kernels.sobol import sample4
 from ..kernels.traverse import any_hit, closest_hit, hit_normal
-from ..scene.surfaces import albedo_at, punctual_irradiance, sample_emitter, sky_radiance, triangle_normal
-from .camera import primary_ray, render_bands
+from ..scene.surfaces import albedo_at, emitter_point, punctual_irradiance, sky_radiance, triangle_normal
+from .camera import primary_ray
 
 MAX_DEPTH = 1000
-RR_DEPTH = 3
+RR_DEPTH = 5
 
 
 @njit(cache=True)
-def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
-    """Radiance (r, g, b) arriving at o from direction -d."""
+def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz, l1, l2):
+    """Radiance (r, g, b) arriving at o from direction -d, sample `index` of
+    `pixel`'s sequences; and whether the ray's first hit is an emitter.
+    (l1, l2): the numbers of the first vertex's emitter point (drawn with
+    the camera ray's, group 0). The vertex at depth k draws its next
+    direction together with the next vertex's emitter point, group k + 1:
+    a direction and the light seen from where it leads are stratified
+    jointly."""
     tri_index = bvh.tri_index
     mat_of, emission, double = surf.tri_material, surf.emission, surf.double_sided
     n_emitters = surf.emitters.shape[0]
@@ -39,6 +57,8 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
     lr, lg, lb = 0.0, 0.0, 0.0
     tr, tg, tb = 1.0, 1.0, 1.0
     pdf_bsdf = 0.0  # 0: the camera ray (emission counts in full)
+    saw_emitter = False
+    roulette = mix64(np.uint64(seed) ^ mix64(np.uint64(pixel) + np.uint64(STREAM_ROULETTE)))
     for depth in range(MAX_DEPTH):
         t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:
@@ -58,6 +78,7 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
             nx, ny, nz, cos_in = -nx, -ny, -nz, -cos_in
         er, eg, eb = emission[mat, 0], emission[mat, 1], emission[mat, 2]
         if er > 0.0 or eg > 0.0 or eb > 0.0:
+            saw_emitter = saw_emitter or depth == 0
             w = 1.0
             if pdf_bsdf > 0.0 and n_emitters > 0:
                 pdf_light = surf.emitter_prob[tri] / surf.tri_area[tri] * t * t / max(cos_in, 1e-300)
@@ -71,12 +92,9 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
         px = ox + t * dx + eps * nx
         py = oy + t * dy + eps * ny
         pz = oz + t * dz + eps * nz
-        dim = depth * PATH_DIMS_PER_BOUNCE
         # next-event estimation on the area emitters
         if n_emitters > 0:
-            ltri, qx, qy, qz, p_tri = sample_emitter(surf, rand01(seed, index, dim + PATH_DIM_LIGHT),
-                                                     rand01(seed, index, dim + PATH_DIM_LIGHT + 1),
-                                                     rand01(seed, index, dim + PATH_DIM_LIGHT + 2))
+            ltri, qx, qy, qz, p_tri = emitter_point(surf, l1, l2)
             wx, wy, wz = qx - px, qy - py, qz - pz
             d2 = wx * wx + wy * wy + wz * wz
             dist = math.sqrt(d2)
@@ -104,8 +122,8 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
                 lg += tg * ag / math.pi * hg
                 lb += tb * ab / math.pi * hb
         # continue the path: cosine sampling, f cos / pdf = albedo
-        dx, dy, dz, cos = cosine_hemisphere(rand01(seed, index, dim + PATH_DIM_BOUNCE),
-                                            rand01(seed, index, dim + PATH_DIM_BOUNCE + 1), nx, ny, nz)
+        u1, u2, l1, l2 = sample4(seed, pixel, index, depth + 1)
+        dx, dy, dz, cos = cosine_hemisphere(u1, u2, nx, ny, nz)
         if cos <= 0.0:
             break
         pdf_bsdf = cos / math.pi
@@ -113,14 +131,17 @@ def trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz):
         ox, oy, oz = px, py, pz
         if depth + 1 >= RR_DEPTH:
             q = min(max(tr, max(tg, tb)), 0.95)
-            if rand01(seed, index, dim + PATH_DIM_ROULETTE) >= q:
+            if rand01(roulette, index, depth) >= q:
                 break
             tr, tg, tb = tr / q, tg / q, tb / q
-    return lr, lg, lb
+    return lr, lg, lb, saw_emitter
 
 
 @njit(cache=True, parallel=True)
-def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out):
+def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp):
+    """Samples s0..s1-1 of every pixel of rows row0..row1-1, summed into
+    `acc` (float64); lamp counts the samples whose camera ray meets an
+    emitter first."""
     n = (row1 - row0) * width
     for k in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
@@ -128,38 +149,122 @@ def _render_rows(bvh, surf, cam, eps, seed, spp, width, height, row0, row1, out)
         x = k % width
         pixel = y * width + x
         sr, sg, sb = 0.0, 0.0, 0.0
-        for s in range(spp):
-            index = pixel * spp + s
-            jx = rand01(seed, index, STREAM_PIXEL_JITTER)
-            jy = rand01(seed, index, STREAM_PIXEL_JITTER + 1)
+        for s in range(s0, s1):
+            jx, jy, l1, l2 = sample4(seed, pixel, s, 0)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, jx, jy, width, height)
-            r, g, b = trace_path(bvh, surf, stack, eps, seed, index, ox, oy, oz, dx, dy, dz)
+            r, g, b, hit = trace_path(bvh, surf, stack, eps, seed, pixel, s, ox, oy, oz, dx, dy, dz, l1, l2)
             sr += r
             sg += g
             sb += b
-        out[y, x, 0] = sr / spp
-        out[y, x, 1] = sg / spp
-        out[y, x, 2] = sb / spp
+            if hit:
+                lamp[y, x] += 1
+        acc[y, x, 0] += sr
+        acc[y, x, 1] += sg
+        acc[y, x, 2] += sb
+
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+BAND_SAMPLES = 1 << 18  # camera samples per band: a fraction of a second, so Ctrl-C and the bar respond
+
+
+@dataclass(frozen=True)
+class PathTrace:
+    """A path-traced image and how far it converged."""
+    image: np.ndarray   # (h, w, 3) float32 linear radiance
+    spp: int            # samples per pixel taken
+    noise: float        # estimated relative RMSE of the image (noise_estimate); inf below 2 spp
+    seconds: float
+    stopped: str        # "spp", "noise" or "time": what ended it
+    lamp: np.ndarray    # (h, w) bool: pixels where a camera ray met an emitter first (left out of `noise`)
+
+
+def noise_estimate(first, second, lamp):
+    """Relative RMSE against the converged image of the mean of two equal
+    halves of a pixel's samples, from their sums: per pixel the error of
+    the full mean is about half the difference of the half means (exact
+    in expectation for independent halves; the halves here are the two
+    aligned blocks of a scrambled Sobol sequence, stratified apart, so the
+    estimate errs on the high side). Luminance, over the pixels that see
+    no emitter directly (a lamp a hundred times brighter than the walls
+    would weigh on it more than all the walls), relative to their mean."""
+    keep = lamp == 0
+    if not keep.any():
+        return 0.0
+    a = first[keep] @ LUMINANCE
+    b = second[keep] @ LUMINANCE
+    m = float((a + b).mean())
+    if m <= 0.0:
+        return 0.0
+    return float(math.sqrt(np.mean((a - b) ** 2)) / m)
+
+
+def pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, time_limit=None, noise=None,
+              progress=None):
+    """Path traces until `spp` samples per pixel, or the estimated relative
+    noise falls to `noise`, or `time_limit` seconds pass, whichever comes
+    first. Samples go in passes: sample 0, then 1, then 2-3, 4-7, ... (the
+    aligned blocks of the Sobol sequences), each in bands of rows; after a
+    pass that completes a power of two the noise is estimated from its two
+    halves (noise_estimate). A time limit shortens the pass that would
+    overrun it; the estimate then scales the last one by the square root
+    of the sample counts. progress(n) gets camera samples done."""
+    t0 = time.perf_counter()
+    eps = 1e-7 * surfaces.scale
+    total = np.zeros((height, width, 3))
+    last = np.zeros((height, width, 3))
+    lamp = np.zeros((height, width), np.int32)
+    args = (scene_bvh.arrays, surfaces.arrays, camera_arr, eps, np.uint64(seed))
+    done, est, est_at, stopped = 0, math.inf, 0, "spp"
+    rate = None  # seconds per camera sample, measured
+    while done < spp:
+        step = min(max(done, 1), spp - done)
+        if time_limit is not None and rate is not None:
+            fit = int((time_limit - (time.perf_counter() - t0)) / (rate * width * height))
+            if fit < 1:
+                stopped = "time"
+                break
+            step = min(step, fit)
+        band = max(1, min(height, BAND_SAMPLES // max(width * step, 1)))
+        last[:] = 0.0
+        ts = time.perf_counter()
+        for r0 in range(0, height, band):
+            r1 = min(height, r0 + band)
+            _accumulate_rows(*args, done, done + step, width, height, r0, r1, last, lamp)
+            if progress is not None:
+                progress((r1 - r0) * width * step)
+        rate = (time.perf_counter() - ts) / (width * height * step)
+        total += last
+        done += step
+        if step == done // 2 and done >= 2:  # a complete power of two: its halves are [0, n/2), [n/2, n)
+            est, est_at = noise_estimate(total - last, last, lamp), done
+            if noise is not None and est <= noise:
+                stopped = "noise"
+                break
+    if est_at and est_at < done:
+        est *= math.sqrt(est_at / done)
+    image = (total / max(done, 1)).astype(np.float32)
+    return PathTrace(image, done, est, time.perf_counter() - t0, stopped, lamp > 0)
 
 
 def render_pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, progress=None):
-    """Linear radiance image (height, width, 3) float32."""
-    eps = 1e-7 * surfaces.scale
-    return render_bands(_render_rows, width, height,
-                        (scene_bvh.arrays, surfaces.arrays, camera_arr, eps, np.uint64(seed), int(spp),
-                         int(width), int(height)), progress, samples_per_pixel=int(spp))
+    """Linear radiance image (height, width, 3) float32, `spp` samples per
+    pixel; progress(n) gets rows done."""
+    rows = None if progress is None else (lambda n: progress(n / (width * spp)))
+    return pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed, progress=rows).image
 
 
 @njit(cache=True, parallel=True)
 def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs):
-    """Mean radiance over spp paths for each (origin, direction) ray: (n, 3) float64."""
+    """Mean radiance over spp paths for each (origin, direction) ray: (n, 3)
+    float64. Ray i takes the sequences of pixel i."""
     n = origins.shape[0]
     out = np.zeros((n, 3))
     for i in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
         for s in range(spp):
-            r, g, b = trace_path(bvh, surf, stack, eps, seed, i * spp + s, origins[i, 0], origins[i, 1], origins[i, 2],
-                                 dirs[i, 0], dirs[i, 1], dirs[i, 2])
+            _, _, l1, l2 = sample4(seed, i, s, 0)
+            r, g, b, _ = trace_path(bvh, surf, stack, eps, seed, i, s, origins[i, 0], origins[i, 1], origins[i, 2],
+                                    dirs[i, 0], dirs[i, 1], dirs[i, 2], l1, l2)
             out[i, 0] += r
             out[i, 1] += g
             out[i, 2] += b

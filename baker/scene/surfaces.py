@@ -161,6 +161,26 @@ def sample_emitter(surf, u_tri, u1, u2):
 
 
 @njit(cache=True)
+def emitter_point(surf, u1, u2):
+    """sample_emitter from two uniform numbers: u1 picks the triangle by
+    power and, rescaled within that triangle's share, places the point
+    with u2, so a stratified pair stays stratified over all the emitters."""
+    cdf = surf.emitter_cdf
+    x = u1 * cdf[-1]
+    k = sample_cdf(cdf, u1)
+    lo = cdf[k - 1] if k > 0 else 0.0
+    u = min(max((x - lo) / (cdf[k] - lo), 0.0), 1.0 - 1e-16)
+    tri = surf.emitters[k]
+    b1, b2 = triangle_point(u, u2)
+    c = surf.corners
+    b0 = 1.0 - b1 - b2
+    px = b0 * c[tri, 0, 0] + b1 * c[tri, 1, 0] + b2 * c[tri, 2, 0]
+    py = b0 * c[tri, 0, 1] + b1 * c[tri, 1, 1] + b2 * c[tri, 2, 1]
+    pz = b0 * c[tri, 0, 2] + b1 * c[tri, 1, 2] + b2 * c[tri, 2, 2]
+    return tri, px, py, pz, surf.emitter_prob[tri]
+
+
+@njit(cache=True)
 def spot_falloff(cos_axis, cos_inner, cos_outer):
     """glTF KHR_lights_punctual's spot attenuation at cos_axis (the cosine
     between the light's axis and the direction to the point): a smooth
