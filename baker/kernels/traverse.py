@@ -62,11 +62,13 @@ def ray_shear(dx, dy, dz):
 def intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz):
     """Watertight ray/triangle test (Woop, Benthin & Wald 2013, JCGT 2(1)):
     rays through a shared edge or vertex hit at least one of the triangles,
-    never slip between them. Returns (t, u, v) with u, v the weights of
-    v1, v2; t = inf on a miss."""
-    ax, ay, az = tris[j, kx] - o[kx], tris[j, ky] - o[ky], tris[j, kz] - o[kz]
-    bx, by, bz = tris[j, 3 + kx] - o[kx], tris[j, 3 + ky] - o[ky], tris[j, 3 + kz] - o[kz]
-    cx, cy, cz = tris[j, 6 + kx] - o[kx], tris[j, 6 + ky] - o[ky], tris[j, 6 + kz] - o[kz]
+    never slip between them. o: the ray origin permuted as (o[kx], o[ky],
+    o[kz]) (once per ray, not per triangle). Returns (t, u, v) with u, v
+    the weights of v1, v2; t = inf on a miss."""
+    ox, oy, oz = o  # the origin, already permuted to (kx, ky, kz)
+    ax, ay, az = tris[j, kx] - ox, tris[j, ky] - oy, tris[j, kz] - oz
+    bx, by, bz = tris[j, 3 + kx] - ox, tris[j, 3 + ky] - oy, tris[j, 3 + kz] - oz
+    cx, cy, cz = tris[j, 6 + kx] - ox, tris[j, 6 + ky] - oy, tris[j, 6 + kz] - oz
     ax, ay = ax - sx * az, ay - sy * az
     bx, by = bx - sx * bz, by - sy * bz
     cx, cy = cx - sx * cz, cy - sy * cz
@@ -90,7 +92,8 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
     cb, root, right, first, count, tris = bvh.child_box, bvh.root_box, bvh.right, bvh.first, bvh.count, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
-    o = (ox, oy, oz)
+    unpermuted = (ox, oy, oz)
+    o = (unpermuted[kx], unpermuted[ky], unpermuted[kz])
     best_t, best_j, best_u, best_v = tmax, -1, 0.0, 0.0
     if _slab(root, 0, ox, oy, oz, ix, iy, iz, tmin, tmax) == np.inf:
         return np.inf, -1, 0.0, 0.0
@@ -138,7 +141,8 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
     cb, root, right, first, count, tris = bvh.child_box, bvh.root_box, bvh.right, bvh.first, bvh.count, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
-    o = (ox, oy, oz)
+    unpermuted = (ox, oy, oz)
+    o = (unpermuted[kx], unpermuted[ky], unpermuted[kz])
     if _slab(root, 0, ox, oy, oz, ix, iy, iz, tmin, tmax) == np.inf:
         return False
     sp = 0
@@ -155,16 +159,16 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
             b = cb[node]
             ta = _slab(b, 0, ox, oy, oz, ix, iy, iz, tmin, tmax)
             tb = _slab(b, 6, ox, oy, oz, ix, iy, iz, tmin, tmax)
-            a, c = node + 1, right[node]
-            if ta > tb:
-                a, c, ta, tb = c, a, tb, ta
-            if ta == np.inf:
-                node = -1
-            else:
-                node = a
+            # any order will do: left first, no sorting
+            if ta != np.inf:
                 if tb != np.inf:
-                    stack[sp] = c
+                    stack[sp] = right[node]
                     sp += 1
+                node = node + 1
+            elif tb != np.inf:
+                node = right[node]
+            else:
+                node = -1
         if node < 0:
             if sp == 0:
                 return False
