@@ -111,7 +111,7 @@ def test_degenerate_inputs_keep_the_tree_within_the_traversal_stack(kind):
     """Triangles along a line whose sizes shrink over 200 orders of magnitude
     (the smaller half rounds to zero area in float32): binned SAH keeps
     peeling a sliver off the big end, and without a depth bound the tree
-    grew to depth 129, past the traversal's fixed stack of 128 (which the
+    grew to depth 129, past the traversal's fixed stack (which the
     traversal would have written past). Many coincident triangles, plus a
     few far apart, split by count. Either way the depth stays under the
     stack and every ray finds what brute force finds."""
@@ -129,9 +129,57 @@ def test_degenerate_inputs_keep_the_tree_within_the_traversal_stack(kind):
     corners = corners.astype(np.float32).astype(float)
     tree = bvh_mod.build(corners)
     depth = tree_depth(tree)
-    assert tree.depth == depth < STACK_SIZE
+    assert tree.depth == depth and 3 * (depth + 1) <= STACK_SIZE  # 3 pending nodes a level at most
     if kind == "sizes":
         assert depth > MAX_SAH_DEPTH  # the median split had to take over: the input is degenerate as meant
     o = np.column_stack([rng.uniform(-0.2, 1.2, 60), rng.uniform(-0.3, 0.3, 60), np.full(60, -1.0)])
     d = np.tile([0.0, 0.0, 1.0], (60, 1)) + rng.normal(0, 0.05, (60, 3))
     check_against_brute_force(corners, o, d)
+
+
+def test_wide_tree_holds_every_triangle_once_inside_its_boxes():
+    """The 4-wide tree the traversal reads: slots fill from the first, each
+    triangle sits in exactly one leaf slot, inside the box of every slot on
+    its path; about half as many nodes as the binary tree's inner nodes
+    would give at two children each."""
+    from baker.kernels.bvh import WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO
+    rng = np.random.default_rng(8)
+    corners = random_soup(rng, 1000).astype(np.float32).astype(float)
+    tree = bvh_mod.build(corners)
+    w, wi = tree.wide, tree.wide.view(np.int32)
+    seen = np.zeros(1000, int)
+    stack = [(0, [tree.root_box])]
+    visited = 0
+    while stack:
+        node, boxes = stack.pop()
+        visited += 1
+        counts = wi[node, WIDE_COUNT:WIDE_COUNT + 4]
+        used = counts >= 0
+        assert used[0] and not (~used[:-1] & used[1:]).any()  # filled from slot 0
+        for s in np.nonzero(used)[0]:
+            box = np.array([w[node, WIDE_LO + 4 * q + s] for q in range(3)]
+                           + [w[node, WIDE_HI + 4 * q + s] for q in range(3)], float)
+            c = wi[node, WIDE_CHILD + s]
+            if counts[s] > 0:
+                for j in range(c, c + counts[s]):
+                    seen[tree.tri_index[j]] += 1
+                    pts = corners[tree.tri_index[j]]
+                    for b in boxes + [box]:
+                        assert (pts >= b[:3]).all() and (pts <= b[3:]).all()
+            else:
+                stack.append((c, boxes + [box]))
+    assert (seen == 1).all() and visited == len(w)
+    inner = int((tree.count == 0).sum())
+    assert len(w) < 0.6 * inner
+
+
+@pytest.mark.parametrize("n", [0, 1, 3])
+def test_tiny_trees(n):
+    """No triangle (every ray misses), one (the root is a leaf), three."""
+    corners = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * n, float) + np.arange(n)[:, None, None] * [0, 0, 1.0]
+    tree = bvh_mod.build(corners.reshape(-1, 3, 3))
+    o = np.tile([0.2, 0.2, -1.0], (4, 1))
+    d = np.tile([0.0, 0.0, 1.0], (4, 1))
+    t, tri, _, _ = tree.closest(o, d)
+    assert (tri == (0 if n else -1)).all() and (np.isfinite(t) == bool(n)).all()
+    assert (tree.occluded(o, d) == bool(n)).all()

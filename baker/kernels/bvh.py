@@ -4,11 +4,13 @@ Layout (depth-first): node i's left child is i + 1, its right child is
 `right[i]`; a leaf has count[i] > 0 and holds triangles first[i] ..
 first[i] + count[i] - 1 of the reordered triangle arrays. Triangles are
 stored reordered as their corners (v0, v1, v2), with `tri_index` mapping
-back to the scene's triangle numbers. `BVHArrays` is what the traversal
-kernels take.
+back to the scene's triangle numbers. The traversal reads the same tree
+collapsed to 4-wide nodes (collapse4, the WIDE_* record below), through
+`BVHArrays`; the binary arrays stay for tests and inspection.
 
-Depth: the traversal keeps at most one pending node per level on a fixed
-stack of STACK_SIZE entries, so the tree must stay shallower. Binned SAH
+Depth: the traversal keeps at most three pending nodes per level of the
+4-wide tree (no deeper than the binary one) on a fixed stack of STACK_SIZE
+entries, so the tree must stay shallower than a third of it. Binned SAH
 can peel a few triangles per level off a degenerate input (sizes or
 positions in a geometric progression: 16 bins over a range that shrinks
 16-fold per level), so below MAX_SAH_DEPTH levels the build splits at the
@@ -23,18 +25,26 @@ N_BINS = 16
 LEAF_MAX = 4
 COST_TRAVERSE = 1.0
 COST_INTERSECT = 1.0
-STACK_SIZE = 128      # traversal stack entries (int32), one per level at most
-MAX_SAH_DEPTH = 64    # deeper nodes split at the median: depth < MAX_SAH_DEPTH + 32 <= STACK_SIZE
+STACK_SIZE = 512      # traversal stack entries (int32): at most 3 per level of the 4-wide tree
+MAX_SAH_DEPTH = 64    # deeper nodes split at the median: 3 (depth + 1) < 3 (MAX_SAH_DEPTH + 33) <= STACK_SIZE
 
 BVHArrays = namedtuple("BVHArrays", [
-    "child_box",   # (nn, 12) float32 boxes (lo xyz, hi xyz) of the left then the right child of an inner node
+    "wide",        # (nw, 32) float32 4-wide nodes, one 128-byte record each (WIDE_* below); node 0 is the root
+    "wide_i",      # the same memory read as int32 (the child and count slots)
     "root_box",    # (6,) float64
-    "right",       # (nn,) int32 right child (the left child of node i is i + 1)
-    "first",       # (nn,) int32 first triangle of a leaf
-    "count",       # (nn,) int32 triangles in a leaf (0: inner node)
     "tris",        # (nt, 9) float32 corners v0 v1 v2 in BVH order
     "tri_index",   # (nt,) int32 BVH order -> scene triangle
 ])
+
+# A 4-wide node's record: the four children's boxes as structure of arrays
+# (lo x of children 0-3, lo y, lo z, hi x, hi y, hi z), then per child its
+# node (inner child) or first triangle (leaf), then its triangle count (0:
+# an inner node; -1: no child in this slot; slots fill from 0).
+WIDE_LO = 0
+WIDE_HI = 12
+WIDE_CHILD = 24
+WIDE_COUNT = 28
+WIDE_RECORD = 32
 
 
 @njit(cache=True)
@@ -247,3 +257,79 @@ def reorder_triangles(corners, order):
             for k in range(3):
                 out[i, 3 * c + k] = corners[t, c, k]
     return out
+
+
+@njit(cache=True)
+def _area(lo, hi, i):
+    dx, dy, dz = hi[i, 0] - lo[i, 0], hi[i, 1] - lo[i, 1], hi[i, 2] - lo[i, 2]
+    return dx * dy + dy * dz + dz * dx
+
+
+@njit(cache=True)
+def collapse4(lo, hi, right, first, count):
+    """The binary tree (depth-first, as build_bvh returns it) as a 4-wide
+    one: each wide node takes a binary node's two children and opens the
+    inner one of largest surface area until it holds four (Wald et al.
+    2008, "Getting rid of packets"). Returns boxes (nw, 4, 6) float64
+    (lo xyz, hi xyz per slot), child (nw, 4) int32 and cnt (nw, 4) int32
+    (the WIDE_CHILD / WIDE_COUNT slots), wide nodes in depth-first order."""
+    nn = right.shape[0]
+    boxes = np.zeros((nn, 4, 6))
+    child = np.full((nn, 4), -1, np.int32)
+    cnt = np.full((nn, 4), -1, np.int32)
+    todo = np.empty(nn + 1, np.int64)   # binary nodes waiting for a wide node, with the wide id given
+    todo_w = np.empty(nn + 1, np.int64)
+    todo[0], todo_w[0] = 0, 0
+    sp = 1
+    nw = 1
+    kids = np.empty(4, np.int64)
+    while sp > 0:
+        sp -= 1
+        b, w = todo[sp], todo_w[sp]
+        if count[b] == 0 and right[b] < 0:  # an empty tree (no triangles): no slots
+            continue
+        if count[b] > 0:  # a leaf root: one slot
+            kids[0] = b
+            k = 1
+        else:
+            kids[0], kids[1] = b + 1, right[b]
+            k = 2
+            while k < 4:
+                best, best_a = -1, -1.0
+                for i in range(k):
+                    c = kids[i]
+                    if count[c] == 0:
+                        a = _area(lo, hi, c)
+                        if a > best_a:
+                            best, best_a = i, a
+                if best < 0:
+                    break
+                c = kids[best]
+                kids[best] = c + 1
+                kids[k] = right[c]
+                k += 1
+        # children in left-to-right order keep the depth-first layout
+        for i in range(1, k):
+            j = i
+            while j > 0 and kids[j - 1] > kids[j]:
+                kids[j - 1], kids[j] = kids[j], kids[j - 1]
+                j -= 1
+        for i in range(k):
+            c = kids[i]
+            for q in range(3):
+                boxes[w, i, q] = lo[c, q]
+                boxes[w, i, 3 + q] = hi[c, q]
+            if count[c] > 0:
+                child[w, i], cnt[w, i] = first[c], count[c]
+        # inner children get wide ids in order; pushed in reverse so the first is built next
+        ids = np.empty(4, np.int64)
+        for i in range(k):
+            if count[kids[i]] == 0:
+                ids[i] = nw
+                child[w, i], cnt[w, i] = nw, 0
+                nw += 1
+        for i in range(k - 1, -1, -1):
+            if count[kids[i]] == 0:
+                todo[sp], todo_w[sp] = kids[i], ids[i]
+                sp += 1
+    return boxes[:nw].copy(), child[:nw].copy(), cnt[:nw].copy()

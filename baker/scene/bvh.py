@@ -5,7 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.bvh import LEAF_MAX, STACK_SIZE, BVHArrays, build_bvh, pack_nodes, reorder_triangles
+from ..kernels.bvh import (LEAF_MAX, STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDE_RECORD, BVHArrays,
+                           build_bvh, collapse4, pack_nodes, reorder_triangles)
 from ..kernels.traverse import any_hit_batch, closest_hit_batch
 
 
@@ -19,11 +20,11 @@ class BVH:
     tris: np.ndarray        # (nt, 9) float32 corners in BVH order
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
     depth: int = 0          # the deepest node's level (root 0)
+    wide: np.ndarray = None  # (nw, WIDE_RECORD) float32: the same tree 4-wide, what the traversal reads
 
     @property
     def arrays(self) -> BVHArrays:
-        return BVHArrays(self.child_box, self.root_box, self.right, self.first, self.count, self.tris,
-                         self.tri_index)
+        return BVHArrays(self.wide, self.wide.view(np.int32), self.root_box, self.tris, self.tri_index)
 
     @property
     def node_count(self) -> int:
@@ -68,15 +69,33 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
     outward to float32 so rounding never loses a hit."""
     corners = np.ascontiguousarray(np.asarray(corners, np.float32), np.float64)
     lo, hi, right, first, count, order, depth = build_bvh(corners, leaf_max)
-    if depth >= STACK_SIZE:  # the build bounds it (kernels/bvh.py): this would be a bug
-        raise RuntimeError(f"BVH depth {depth} exceeds the traversal stack ({STACK_SIZE})")
+    if 3 * (depth + 1) > STACK_SIZE:  # the build bounds it (kernels/bvh.py): this would be a bug
+        raise RuntimeError(f"BVH depth {depth} exceeds the traversal stack ({STACK_SIZE} entries, 3 a level)")
     scale = float(np.abs(corners).max()) if corners.size else 1.0
     pad = 1e-9 * max(scale, 1e-30)
     lo, hi = lo - pad, hi + pad
     child = pack_nodes(lo, hi, right, count)
     root = np.concatenate([lo[0], hi[0]]).astype(np.float64)
     return BVH(_outward32(child), root, right, first, count, reorder_triangles(corners, order).astype(np.float32),
-               order.astype(np.int32), int(depth))
+               order.astype(np.int32), int(depth), _wide(lo, hi, right, first, count))
+
+
+def _wide(lo, hi, right, first, count):
+    """The 4-wide records (kernels/bvh.py, WIDE_*), 64-byte aligned so each
+    is two cache lines; boxes rounded outward to float32."""
+    boxes, child, cnt = collapse4(lo, hi, right, first, count)
+    nw = len(boxes)
+    raw = np.zeros(nw * WIDE_RECORD + 16, np.float32)
+    off = (-raw.ctypes.data % 64) // 4
+    wide = raw[off:off + nw * WIDE_RECORD].reshape(nw, WIDE_RECORD)
+    ints = wide.view(np.int32)
+    b32 = _outward32(boxes.reshape(-1, 6)).reshape(nw, 4, 6)
+    for q in range(3):
+        wide[:, WIDE_LO + 4 * q:WIDE_LO + 4 * q + 4] = b32[:, :, q]
+        wide[:, WIDE_HI + 4 * q:WIDE_HI + 4 * q + 4] = b32[:, :, 3 + q]
+    ints[:, WIDE_CHILD:WIDE_CHILD + 4] = child
+    ints[:, WIDE_COUNT:WIDE_COUNT + 4] = cnt
+    return wide
 
 
 def build_scene_bvh(scene) -> BVH:
