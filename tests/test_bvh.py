@@ -176,8 +176,9 @@ def test_wide_tree_holds_every_triangle_once_inside_its_boxes():
 @pytest.mark.parametrize("n", [0, 1, 3])
 def test_tiny_trees(n):
     """No triangle (every ray misses), one (the root is a leaf), three."""
-    corners = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * n, float) + np.arange(n)[:, None, None] * [0, 0, 1.0]
-    tree = bvh_mod.build(corners.reshape(-1, 3, 3))
+    one = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    corners = np.repeat(one[None], n, axis=0) + np.arange(n)[:, None, None] * np.array([0, 0, 1.0])
+    tree = bvh_mod.build(corners.reshape(n, 3, 3))
     o = np.tile([0.2, 0.2, -1.0], (4, 1))
     d = np.tile([0.0, 0.0, 1.0], (4, 1))
     t, tri, _, _ = tree.closest(o, d)

@@ -235,7 +235,7 @@ def pack_nodes(lo, hi, right, count):
     nn = right.shape[0]
     cb = np.zeros((nn, 12))
     for i in range(nn):
-        if count[i] == 0:
+        if count[i] == 0 and right[i] >= 0:  # (an empty tree's root has no children)
             a, b = i + 1, right[i]
             for k in range(3):
                 cb[i, k] = lo[a, k]
