@@ -57,6 +57,56 @@ def test_tree_invariants(n, n_dir, seed):
             assert t.right[node] > node + 1 or t.right[node] == node + 2
 
 
+def test_tree_is_the_same_for_any_thread_count_and_matches_a_plain_build():
+    """The subtrees under the top levels are built in parallel: the tree is
+    the same for any thread count, and the same as one built node by node
+    with every extent measured afresh (a plain-Python reference of the
+    split rule on a small input)."""
+    from baker.lights.lighttree import BINS, _topology
+    from tests.threads import same_for_any_thread_count
+    rng = np.random.default_rng(4)
+    v = random_vpls(rng, 20000, 300)
+    same_for_any_thread_count(lambda: tuple(np.asarray(x) for x in build_tree(v, 3).__dict__.values()))
+    pts = np.concatenate([rng.random((300, 6)), np.repeat(rng.random((3, 6)), 40, axis=0)])
+    order = np.arange(len(pts))
+    right, start, count = _topology(pts, order)
+    ref_order = list(range(len(pts)))
+    ref_right = {}
+
+    def build(node, a, b):  # the rule, written plainly
+        if b - a == 1:
+            return
+        seg = np.array(ref_order[a:b])
+        ext = pts[seg].max(axis=0) - pts[seg].min(axis=0)
+        ax = int(np.argmax(ext))  # first axis of largest extent
+        mid = (a + b) // 2
+        if ext[ax] > 0:
+            lo = pts[seg, ax].min()
+            scale = BINS / ext[ax]
+            hist = np.bincount(np.minimum(BINS - 1, ((pts[seg, ax] - lo) * scale).astype(int)), minlength=BINS)
+            cut = int(np.argmax(np.cumsum(hist) >= (b - a) // 2))
+            edge = lo + (cut + 1) / scale
+            i, j = a, b - 1
+            while i <= j:
+                if pts[ref_order[i], ax] < edge:
+                    i += 1
+                else:
+                    ref_order[i], ref_order[j] = ref_order[j], ref_order[i]
+                    j -= 1
+            if a < i < b and abs((i - a) - (b - i)) <= (b - a) // 2:
+                mid = i
+            else:
+                seg = np.array(ref_order[a:b])
+                ref_order[a:b] = list(seg[np.argsort(pts[seg, ax], kind="mergesort")])
+        ref_right[node] = node + 2 * (mid - a)
+        build(node + 1, a, mid)
+        build(node + 2 * (mid - a), mid, b)
+
+    build(0, 0, len(pts))
+    assert list(order) == ref_order
+    assert {k: int(right[k]) for k in range(len(right)) if right[k] >= 0} == ref_right
+
+
 def test_representatives_follow_power():
     """A representative is drawn in proportion to luminance: two lights of
     luminance 1 and 3 over 4000 seeds, the brighter is the root's
