@@ -15,7 +15,6 @@ estimate is subtracted in quadrature, so the figures are the images' own.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import math
 import os
@@ -26,7 +25,7 @@ import time
 
 import numpy as np
 
-from common import ROOT, emit
+from common import cached_reference, emit, rel_rmse
 
 MITSUBA_SCRIPT = r'''
 import json, sys, time
@@ -90,16 +89,6 @@ def export_for_mitsuba(scene, camera, folder):
                                           "up": list(map(float, camera.up)), "yfov": float(camera.yfov)}}
 
 
-def rel_rmse(image, ref, lamp, ref_noise):
-    from baker.render.compare import LUMINANCE
-    a = np.asarray(image, np.float64) @ LUMINANCE
-    r = np.asarray(ref, np.float64) @ LUMINANCE
-    keep = ~lamp
-    m = r[keep].mean()
-    mse = np.mean((a - r)[keep] ** 2) - (ref_noise * m) ** 2
-    return math.sqrt(max(mse, 0.0)) / m
-
-
 def time_to(target, spps, errors, seconds):
     """Seconds to reach `target` by a power law fitted to (spp, error),
     at the measured seconds per spp."""
@@ -122,7 +111,6 @@ def main():
     from baker.render import camera_array
     from baker.render.pathtrace import pathtrace
     from baker.scene import build_scene_bvh, pack
-    from baker.scene.load import resolve
     s = args.size
     spps = [int(x) for x in args.spp.split(",")]
     scene = baker.load_scene("cornell_box")
@@ -130,16 +118,7 @@ def main():
     camera = scene.camera(None, bvh)
     cam = camera_array(camera, s, s)
     pathtrace(bvh, surf, camera_array(camera, 8, 8), 8, 8, 4)  # compile
-    digest = hashlib.sha256(open(resolve("cornell_box"), "rb").read()).hexdigest()[:12]
-    os.makedirs(os.path.join(ROOT, "bench", "out"), exist_ok=True)
-    cache = os.path.join(ROOT, "bench", "out", f"pt_ref_cornell_box_{s}_{args.ref_spp}_{digest}.npz")
-    if os.path.exists(cache):
-        z = np.load(cache)
-        ref, lamp, ref_noise, ref_s = z["image"], z["lamp"], float(z["noise"]), float(z["seconds"])
-    else:
-        r = pathtrace(bvh, surf, cam, s, s, args.ref_spp, seed=1000)
-        ref, lamp, ref_noise, ref_s = r.image, r.lamp, r.noise, r.seconds
-        np.savez(cache, image=ref, lamp=lamp, noise=ref_noise, seconds=ref_s)
+    ref, lamp, ref_noise, ref_s = cached_reference("cornell_box", scene, bvh, surf, cam, s, args.ref_spp)
     rows, errs, secs = [], [], []
     for n in spps:
         r = pathtrace(bvh, surf, cam, s, s, n, seed=1)
