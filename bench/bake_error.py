@@ -1,0 +1,66 @@
+"""Lightmap error against bake time, texel by texel: the Cornell box baked
+at a fixed texel density (128 texels per metre, as the Blender Cycles
+figures were measured) at each preset and lightcuts epsilon, against a
+converged bake of our own with the same texel layout (the high preset,
+epsilon 0.002, 4x its direct VPLs). Error: relative RMSE of the texels'
+irradiance (luminance) over the covered texels not on an emitter,
+divided by the reference's mean there. Times are whole bakes (voxel
+solve, texels, atlas), in process, after a warm-up.
+
+    python bench/bake_error.py [--density 128] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from common import emit
+
+LUM = np.array([0.2126, 0.7152, 0.0722])
+
+
+def texel_values(scene, config):
+    from baker.bake.pipeline import bake_scene
+    t = time.perf_counter()
+    _, _, texels, _ = bake_scene(scene, config)
+    return texels, time.perf_counter() - t
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--density", type=float, default=128.0, help="texels per scene unit (the Cornell box is in metres)")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    import baker
+    from baker.bake.pipeline import bake_config
+    from baker.lights import lightcuts_config
+    scene = baker.load_scene("cornell_box")
+    texel_values(scene, bake_config("preview", texel_density=16))  # compile
+    high = lightcuts_config("high")
+    ref, t_ref = texel_values(scene, bake_config("high", texel_density=args.density, epsilon=0.002,
+                                                 direct_vpls=4 * high.direct_vpls))
+    emitter = scene.emission[scene.material_ids].max(axis=1) > 0
+    keep = ref.covered & ~ref.inside & (ref.texel_tri >= 0)
+    keep &= ~emitter[np.maximum(ref.texel_tri, 0)]
+    r = ref.values[keep] @ LUM
+    m = r.mean()
+    rows = []
+    for preset in ("preview", "default", "high"):
+        for eps in ((None,) if preset == "preview" else (0.05, 0.02, 0.01)):
+            tx, secs = texel_values(scene, bake_config(preset, texel_density=args.density, epsilon=eps))
+            if len(tx.values) != len(ref.values):
+                raise SystemExit("texel layouts differ: cannot compare texel by texel")
+            a = tx.values[keep] @ LUM
+            e = math.sqrt(np.mean((a - r) ** 2)) / m
+            rows.append([preset, "voxels" if eps is None else f"lightcuts, eps {eps:g}", f"{secs:.2f}",
+                         f"{100 * e:.2f}", f"{100 * np.percentile(np.abs(a - r) / m, 95):.1f}"])
+    emit(args, f"Cornell box lightmap texels ({int(keep.sum()):,} texels at {args.density:g} per metre) against "
+               f"a converged bake of ours ({t_ref:.0f} s)", rows,
+         ["preset", "texel values", "bake s", "rel. RMSE %", "95th pct |error| / mean %"])
+
+
+if __name__ == "__main__":
+    main()
