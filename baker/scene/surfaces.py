@@ -144,12 +144,9 @@ def triangle_normal(corners, tri):
 
 
 @njit(cache=True)
-def sample_emitter(surf, u_tri, u1, u2):
-    """A point on the area emitters from three uniform numbers: the triangle
-    drawn by power (u_tri), the point uniform on it (u1, u2). Returns
-    (tri, px, py, pz, p_tri): p_tri the probability of that triangle (the
-    point's density is p_tri / area)."""
-    k = sample_cdf(surf.emitter_cdf, u_tri)
+def _on_emitter(surf, k, u1, u2):
+    """(tri, px, py, pz, p_tri): emitter k's triangle, the point (u1, u2)
+    places uniformly on it, and that triangle's probability."""
     tri = surf.emitters[k]
     b1, b2 = triangle_point(u1, u2)
     c = surf.corners
@@ -161,23 +158,24 @@ def sample_emitter(surf, u_tri, u1, u2):
 
 
 @njit(cache=True)
+def sample_emitter(surf, u_tri, u1, u2):
+    """A point on the area emitters from three uniform numbers: the triangle
+    drawn by power (u_tri), the point uniform on it (u1, u2). Returns
+    (tri, px, py, pz, p_tri): p_tri the probability of that triangle (the
+    point's density is p_tri / area)."""
+    return _on_emitter(surf, sample_cdf(surf.emitter_cdf, u_tri), u1, u2)
+
+
+@njit(cache=True)
 def emitter_point(surf, u1, u2):
     """sample_emitter from two uniform numbers: u1 picks the triangle by
     power and, rescaled within that triangle's share, places the point
     with u2, so a stratified pair stays stratified over all the emitters."""
     cdf = surf.emitter_cdf
-    x = u1 * cdf[-1]
     k = sample_cdf(cdf, u1)
     lo = cdf[k - 1] if k > 0 else 0.0
-    u = min(max((x - lo) / (cdf[k] - lo), 0.0), 1.0 - 1e-16)
-    tri = surf.emitters[k]
-    b1, b2 = triangle_point(u, u2)
-    c = surf.corners
-    b0 = 1.0 - b1 - b2
-    px = b0 * c[tri, 0, 0] + b1 * c[tri, 1, 0] + b2 * c[tri, 2, 0]
-    py = b0 * c[tri, 0, 1] + b1 * c[tri, 1, 1] + b2 * c[tri, 2, 1]
-    pz = b0 * c[tri, 0, 2] + b1 * c[tri, 1, 2] + b2 * c[tri, 2, 2]
-    return tri, px, py, pz, surf.emitter_prob[tri]
+    u = min(max((u1 * cdf[-1] - lo) / (cdf[k] - lo), 0.0), 1.0 - 1e-16)
+    return _on_emitter(surf, k, u, u2)
 
 
 @njit(cache=True)
