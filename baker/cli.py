@@ -125,7 +125,9 @@ def _solver_config(args, **knobs):
     from .config import solver_config
     from .errors import ConfigError
     try:
-        return solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size, **knobs)
+        return solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size,
+                             surface_cells=getattr(args, "surface_cells", None),
+                             photons_per_voxel=getattr(args, "photons_per_voxel", None), **knobs)
     except ConfigError as e:
         raise ConfigError(f"invalid solver setting: {e}") from None
 
@@ -299,7 +301,9 @@ def cmd_bake(args):
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
                              preview_vpls=args.preview_vpls, resolution=args.resolution,
-                             cell_size=args.cell_size, radius=args.radius, photons=args.photons, seed=args.seed,
+                             cell_size=args.cell_size, surface_cells=args.surface_cells,
+                             photons_per_voxel=args.photons_per_voxel, radius=args.radius, photons=args.photons,
+                             seed=args.seed,
                              threads=args.threads, memory_budget_mb=args.memory_budget, schedule=args.schedule,
                              tolerance=args.tolerance, max_bounces=args.max_bounces)
     except ConfigError as e:
@@ -337,7 +341,7 @@ def cmd_audit(args):
         print(geometry_report(scene).summary())
         tree = build_scene_bvh(scene)
         surf = pack(scene)
-        vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surf)
+        vox = voxelize(scene, config.resolution_for(scene), config.cell_size, config.memory_budget_mb, surf)
         report = audit(scene, vox, tree, surf, radius=args.radius, families=args.families, samples=args.samples,
                        seed=args.seed)
     print(f"{len(vox)} voxels, cell {vox.cell_size:.4g}")
@@ -375,11 +379,15 @@ def _solver_args(p):
     g = p.add_argument_group("voxel solver")
     g.add_argument("--preset", choices=("preview", "default", "high"), default="default",
                    help="solver preset (default: default)")
-    g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis")
-    g.add_argument("--cell-size", type=float, help="voxel cell size in scene units (instead of --resolution)")
+    g.add_argument("--surface-cells", type=int,
+                   help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
+                        "the surface area (preset: 6250/25000/100000)")
+    g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis (instead)")
+    g.add_argument("--cell-size", type=float, help="voxel cell size in scene units (instead of either)")
     g.add_argument("--radius", type=int, help="direction radius r of the first propagated bounce")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce")
-    g.add_argument("--photons", type=int, help="photons for the first bounce")
+    g.add_argument("--photons", type=int, help="photons for the first bounce (instead of --photons-per-voxel)")
+    g.add_argument("--photons-per-voxel", type=float, help="photons per voxel for the first bounce (preset: 32/64/128)")
     g.add_argument("--tolerance", type=float, help="stop when new light < tolerance x first bounce")
     g.add_argument("--max-bounces", type=int, help="bounce cap")
     g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")

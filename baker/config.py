@@ -3,6 +3,7 @@ and the worker-thread setting."""
 from __future__ import annotations
 
 import difflib
+import math
 from contextlib import contextmanager
 from dataclasses import dataclass, fields, replace
 
@@ -13,13 +14,25 @@ from .errors import ConfigError
 class SolverConfig:
     """Knobs of the voxel solver (docs/design.md sections 2-5).
 
-    resolution: cells along the scene's longest axis (ignored when
-        cell_size > 0, which sets the cell size in scene units).
+    surface_cells: how many cells the scene's surfaces should cover (their
+        area projected on each triangle's dominant axis, in cells^2, about
+        the voxel count): the cell size follows the scene's surface area,
+        not its bounding box, so a building gets finer cells than a box
+        of the same size (docs/design.md section 11).
+    resolution: cells along the scene's longest axis, instead of
+        surface_cells (0: from surface_cells).
+    cell_size: the cell size in scene units, instead of either (0: unset).
     radius: r of the first propagated bounce's direction set D_r
         (DirectionSet.n_directions of them).
     schedule: 'halving' (|D| about halved each bounce, floor r_min) or
         'constant' (same r every bounce), docs/design.md section 3.
-    photons: photons shot from the lights for the first bounce.
+    photons: photons shot from the lights for the first bounce (0: from
+        photons_per_voxel).
+    photons_per_voxel: photons per voxel when photons is 0: the photon
+        noise of a voxel's first bounce follows this, not the scene size.
+    photon_smoothing: a voxel's photon estimate is pooled with its
+        neighbours on the same surface that agree with it within this many
+        standard deviations of the photon noise (0: off).
     tolerance: stop when the power of the newly arrived radiosity falls
         below tolerance times that of the first bounce.
     max_bounces: bounce cap (counting the photon bounce as 1).
@@ -28,12 +41,15 @@ class SolverConfig:
     threads: worker threads (0: all cores).
     memory_budget_mb: refuse a voxelization estimated above this.
     """
-    resolution: int = 64
+    surface_cells: int = 25_000
+    resolution: int = 0
     cell_size: float = 0.0
     radius: int = 8
     schedule: str = "halving"
     r_min: int = 2
-    photons: int = 1_000_000
+    photons: int = 0
+    photons_per_voxel: float = 64.0
+    photon_smoothing: float = 3.0
     tolerance: float = 1e-3
     max_bounces: int = 64
     seed: int = 0
@@ -43,18 +59,35 @@ class SolverConfig:
     def __post_init__(self):
         if self.schedule not in ("halving", "constant"):
             raise ConfigError(f"schedule must be 'halving' or 'constant', not {self.schedule!r}")
-        if self.resolution < 1 and self.cell_size <= 0:
-            raise ConfigError("resolution must be >= 1 (or give a cell size)")
+        if self.resolution < 0 or (self.resolution == 0 and self.cell_size <= 0 and self.surface_cells < 1):
+            raise ConfigError("resolution must be >= 1 (or give a cell size, or surface cells >= 1)")
         if self.cell_size < 0:
             raise ConfigError(f"cell size must be positive (got {self.cell_size})")
         if self.radius < 1 or self.r_min < 1:
             raise ConfigError("direction radius must be >= 1")
         if self.photons < 0 or self.max_bounces < 1 or self.tolerance < 0:
             raise ConfigError("photons >= 0, max_bounces >= 1 and tolerance >= 0 are required")
+        if not self.photon_smoothing >= 0:
+            raise ConfigError(f"photon smoothing must be >= 0 standard deviations (got {self.photon_smoothing})")
+        if not self.photons_per_voxel >= 0:
+            raise ConfigError(f"photons per voxel must be >= 0 (got {self.photons_per_voxel})")
         if self.threads < 0:
             raise ConfigError(f"threads must be >= 0 (0: all cores), not {self.threads}")
         if self.memory_budget_mb <= 0:
             raise ConfigError(f"memory budget must be positive (got {self.memory_budget_mb} MiB)")
+
+    def resolution_for(self, scene) -> int:
+        """Cells along the scene's longest axis (ignored when cell_size > 0)."""
+        if self.resolution > 0 or self.cell_size > 0:
+            return int(self.resolution)
+        from .voxels import surface_resolution
+        return surface_resolution(scene, self.surface_cells)
+
+    def photon_count(self, voxels: int) -> int:
+        """Photons to shoot for a voxelization of this many voxels."""
+        if self.photons > 0:
+            return int(self.photons)
+        return int(math.ceil(self.photons_per_voxel * voxels))
 
     def radii(self) -> list:
         """r_k of bounces 2, 3, ... (docs/design.md section 3): with 'halving',
@@ -69,9 +102,9 @@ class SolverConfig:
 
 
 PRESETS = {
-    "preview": SolverConfig(resolution=32, radius=4, photons=200_000, tolerance=1e-2, max_bounces=16),
-    "default": SolverConfig(resolution=64, radius=8, photons=1_000_000, tolerance=1e-3, max_bounces=64),
-    "high": SolverConfig(resolution=128, radius=12, photons=4_000_000, tolerance=1e-4, max_bounces=128),
+    "preview": SolverConfig(surface_cells=6_250, radius=4, photons_per_voxel=32, tolerance=1e-2, max_bounces=16),
+    "default": SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, tolerance=1e-3, max_bounces=64),
+    "high": SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, tolerance=1e-4, max_bounces=128),
 }
 
 

@@ -21,7 +21,7 @@ from ..scene.bvh import build_scene_bvh
 from ..scene.surfaces import pack
 from ..stats import Stats, release_freed_memory
 from ..voxels import Voxels, voxelize
-from ..voxels.lookup import pool_parents
+from ..voxels.lookup import pool_parents, smooth_photons
 from .directions import direction_set
 from .photons import shoot_photons
 from .propagate import LineSweeper
@@ -65,11 +65,21 @@ class Solution:
 MIN_POOL_AREA = 0.25  # in cells^2: smaller voxels pool their photons with a neighbour
 
 
-def first_bounce_irradiance(vox, deposited):
-    """H_1 = deposited power / area (n, 3); a voxel under a quarter cell
+def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=None):
+    """H_1 = deposited power / area (n, 3).
+
+    With smoothing k > 0 (and photons of luminance photon_lum): each voxel
+    pools its photons with the neighbours on its surface that agree with
+    it within k standard deviations of the photon noise
+    (voxels/lookup.smooth_photons; bvh: the scene's, to see that nothing
+    stands between them). Otherwise a voxel under a quarter cell
     takes the pooled estimate (P + P_parent) / (A + A_parent) of itself and
     its largest neighbour on the same surface (photon noise scales as
     1 / sqrt(area): slivers would be spikes)."""
+    if smoothing > 0 and photon_lum > 0 and bvh is not None:
+        return smooth_photons(bvh.arrays, vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims, vox.cell_size,
+                              np.ascontiguousarray(deposited, np.float64), float(photon_lum), float(smoothing),
+                              vox.cut_plane, vox.cut_sign, vox.origin)
     h1 = deposited / vox.area[:, None]
     parent = pool_parents(vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
                           vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2, vox.cut_plane, vox.cut_sign, vox.origin)
@@ -94,15 +104,16 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
         bvh = bvh or build_scene_bvh(scene)
         surfaces = surfaces or pack(scene)
     with stats.stage("voxelize"):
-        vox = voxelize(scene, config.resolution, config.cell_size, config.memory_budget_mb, surfaces)
+        vox = voxelize(scene, config.resolution_for(scene), config.cell_size, config.memory_budget_mb, surfaces)
         release_freed_memory()
     n = len(vox)
-    with stats.stage("photons"), bar(config.photons, "photons", "photon", progress) as pbar:
-        dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, config.photons, config.seed,
+    n_photons = config.photon_count(n)
+    with stats.stage("photons"), bar(n_photons, "photons", "photon", progress) as pbar:
+        dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, n_photons, config.seed,
                                                    pbar.update)
         release_freed_memory()
     area = vox.area[:, None]
-    h1 = first_bounce_irradiance(vox, dep)
+    h1 = first_bounce_irradiance(vox, dep, float(np.sum(emitted)) / max(n_photons, 1), config.photon_smoothing, bvh)
     lum = dep.sum(axis=1)
     centroid = np.where(lum[:, None] > 0, pcen / np.where(lum > 0, lum, 1.0)[:, None], vox.centroid)
     del pcen, lum  # (n, 3) arrays the propagation does not need: less peak memory
@@ -114,7 +125,12 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     bounce_power = [p1]
     radii_used, directions = [], []
     rays = 0
-    stop = "no light reached a surface" if p1 <= 0 else f"bounce cap ({config.max_bounces})"
+    if p1 > 0:
+        stop = f"bounce cap ({config.max_bounces})"
+    elif landed and float(dep.sum()) > 0:
+        stop = "nothing reflected (albedo 0 wherever the light landed)"
+    else:
+        stop = "no light reached a surface"
     if p1 > 0 and config.max_bounces > 1:
         radii = config.radii()
         with stats.stage("propagation"), bar(len(radii), "bounces", "bounce", progress) as bbar:
@@ -141,7 +157,7 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     elif p1 > 0:
         stop = "bounce cap (1)"
     radiosity = vox.emission + vox.albedo * total
-    info = {"photons": int(config.photons), "photons_landed": landed, "emitted_power": emitted.tolist(),
+    info = {"photons": int(n_photons), "photons_landed": landed, "emitted_power": emitted.tolist(),
             "discrete_rays": int(rays), "voxels": n, "cell_size": vox.cell_size,
             "directions_per_bounce": directions, "bounces": len(bounce_power),
             "stop_reason": stop, "voxel_bytes": vox.nbytes}

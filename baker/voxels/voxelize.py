@@ -147,6 +147,26 @@ def grid_for(scene, resolution: int = 64, cell_size: float = 0.0) -> Grid:
     return Grid(origin, h, dims)
 
 
+def surface_resolution(scene, surface_cells: int) -> int:
+    """Cells along the longest axis such that the surfaces cover about
+    surface_cells cells: their area projected on each side's dominant axis
+    plane (the columns a side crosses, close to its voxel count: within
+    10-60% on the test scenes, more where cells hold several sheets) over
+    h^2. The cell size then follows the surfaces, not the bounding box."""
+    lo, hi = scene.bounds()
+    extent = float((hi - lo).max())
+    corners = scene.triangle_corners()
+    if extent <= 0 or not len(corners):
+        return 1
+    sides_tri, _ = _sides(scene)
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    projected = float(0.5 * np.abs(cross).max(axis=1)[sides_tri].sum())  # in scene units^2
+    if projected <= 0:
+        return 1
+    res = int(round(extent * np.sqrt(surface_cells / projected)))
+    return int(min(max(res, 1), MAX_CELLS_PER_AXIS - 4))
+
+
 def _sides(scene):
     """Triangle sides: (triangle (ns,) int32, sign (ns,) int32 +1 front / -1
     back); fronts first in triangle order, then the backs of double-sided
