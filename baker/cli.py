@@ -127,7 +127,8 @@ def _solver_config(args, **knobs):
     try:
         return solver_config(args.preset, resolution=args.resolution, cell_size=args.cell_size,
                              surface_cells=getattr(args, "surface_cells", None),
-                             photons_per_voxel=getattr(args, "photons_per_voxel", None), **knobs)
+                             photons_per_voxel=getattr(args, "photons_per_voxel", None),
+                             photon_smoothing=getattr(args, "photon_smoothing", None), **knobs)
     except ConfigError as e:
         raise ConfigError(f"invalid solver setting: {e}") from None
 
@@ -302,7 +303,8 @@ def cmd_bake(args):
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
                              preview_vpls=args.preview_vpls, resolution=args.resolution,
                              cell_size=args.cell_size, surface_cells=args.surface_cells,
-                             photons_per_voxel=args.photons_per_voxel, radius=args.radius, photons=args.photons,
+                             photons_per_voxel=args.photons_per_voxel, photon_smoothing=args.photon_smoothing,
+                             radius=args.radius, photons=args.photons,
                              seed=args.seed,
                              threads=args.threads, memory_budget_mb=args.memory_budget, schedule=args.schedule,
                              tolerance=args.tolerance, max_bounces=args.max_bounces)
@@ -381,13 +383,16 @@ def _solver_args(p):
                    help="solver preset (default: default)")
     g.add_argument("--surface-cells", type=int,
                    help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
-                        "the surface area (preset: 6250/25000/100000)")
+                        "the surface area (preset: 12500/25000/100000)")
     g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis (instead)")
     g.add_argument("--cell-size", type=float, help="voxel cell size in scene units (instead of either)")
     g.add_argument("--radius", type=int, help="direction radius r of the first propagated bounce")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce")
     g.add_argument("--photons", type=int, help="photons for the first bounce (instead of --photons-per-voxel)")
     g.add_argument("--photons-per-voxel", type=float, help="photons per voxel for the first bounce (preset: 32/64/128)")
+    g.add_argument("--photon-smoothing", type=float, metavar="K",
+                   help="pool a voxel's photons with same-surface neighbours that agree within K standard "
+                        "deviations of the photon noise (preset: 2/0/0; 0: off)")
     g.add_argument("--tolerance", type=float, help="stop when new light < tolerance x first bounce")
     g.add_argument("--max-bounces", type=int, help="bounce cap")
     g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")

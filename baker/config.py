@@ -49,7 +49,7 @@ class SolverConfig:
     r_min: int = 2
     photons: int = 0
     photons_per_voxel: float = 64.0
-    photon_smoothing: float = 3.0
+    photon_smoothing: float = 0.0
     tolerance: float = 1e-3
     max_bounces: int = 64
     seed: int = 0
@@ -102,9 +102,15 @@ class SolverConfig:
 
 
 PRESETS = {
-    "preview": SolverConfig(surface_cells=6_250, radius=4, photons_per_voxel=32, tolerance=1e-2, max_bounces=16),
-    "default": SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, tolerance=1e-3, max_bounces=64),
-    "high": SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, tolerance=1e-4, max_bounces=128),
+    # retuned from bench/tradeoff.py (bench/results/tradeoff.md): the preview shows the voxels themselves, where
+    # smoothing the photons and twice the surface cells pay on every test scene; default and high shade texels by
+    # lightcuts, where the smoothing made the Cornell box's lightmaps 1-1.5% brighter and worse (3.7% -> 4.6%)
+    "preview": SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0,
+                            tolerance=1e-2, max_bounces=16),
+    "default": SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0,
+                            tolerance=1e-3, max_bounces=64),
+    "high": SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
+                         tolerance=1e-4, max_bounces=128),
 }
 
 

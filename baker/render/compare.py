@@ -31,15 +31,20 @@ class Comparison:
 def lit_pixels(ref, lamp_rings: int = 2) -> np.ndarray:
     """(h, w) bool: the pixels of a luminance image that are lit and not the
     lamp (over half the brightest) or the rings of pixels its edge covers."""
-    lamp = ref > 0.5 * ref.max()
-    for _ in range(lamp_rings):
-        grow = lamp.copy()
-        grow[1:] |= lamp[:-1]
-        grow[:-1] |= lamp[1:]
-        grow[:, 1:] |= lamp[:, :-1]
-        grow[:, :-1] |= lamp[:, 1:]
-        lamp = grow
-    return ~lamp & (ref > 0)
+    return ~grow(ref > 0.5 * ref.max(), lamp_rings) & (ref > 0)
+
+
+def grow(mask, rings: int) -> np.ndarray:
+    """(h, w) bool mask grown by `rings` rings of 4-connected pixels."""
+    mask = np.asarray(mask, bool)
+    for _ in range(rings):
+        out = mask.copy()
+        out[1:] |= mask[:-1]
+        out[:-1] |= mask[1:]
+        out[:, 1:] |= mask[:, :-1]
+        out[:, :-1] |= mask[:, 1:]
+        mask = out
+    return mask
 
 
 def compare(image, reference, block: int = 8, lamp_rings: int = 2) -> Comparison:
