@@ -241,8 +241,9 @@ def main():
         print(f"{name}: reference {args.ref_spp} spp ({ref_s:.0f} s, noise {100 * ref_noise:.2f}%)", flush=True)
         bake_point(scene, bvh, surf, cam, 8, "preview", {"surface_cells": 500})  # compile / load kernels
         around = set(filter(None, args.around.split(",")))
-        for preset in args.presets.split(","):
-            points = [("preset", "", {})]
+        measured = set(filter(None, args.presets.split(",")))
+        for preset in [p for p in ("preview", "default", "high") if p in measured | around]:
+            points = [("preset", "", {})] if preset in measured else []
             if preset in around:
                 points += [p for p in knob_values(preset) if not only or p[0] in only]
             for knob, value, over in points:
