@@ -67,6 +67,28 @@ def _same_side(a, b, vcell, vcentroid, cut_plane, cut_sign, origin, h):
     return (s >= 0.0) == (cut_sign[a] > 0)
 
 
+@njit(cache=True, inline="always")
+def _neighbour_key(vcell, i, d0, d1, d2, dims):
+    """Key of the cell at offset (d0, d1, d2) from voxel i's, -1 outside the grid."""
+    x, y, z = vcell[i, 0] + d0, vcell[i, 1] + d1, vcell[i, 2] + d2
+    if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+        return np.int64(-1)
+    return (np.int64(x) * dims[1] + y) * dims[2] + z
+
+
+@njit(cache=True, inline="always")
+def _same_surface(i, j, vcell, vcentroid, vnormal, cut_plane, cut_sign, origin, h):
+    """Voxels i and j on one surface: normals within PARALLEL_COS, j's plane
+    within POOL_PLANE cells of i's centroid, each on the other's side of
+    any surface cutting its cell."""
+    cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + vnormal[i, 2] * vnormal[j, 2]
+    plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
+        (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
+    return cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and \
+        _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign, origin, h) and \
+        _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h)
+
+
 @njit(cache=True, parallel=True)
 def pool_parents(vkey, vcell, vcentroid, vnormal, varea, dims, h, min_area, cut_plane, cut_sign, origin):
     """For each voxel smaller than min_area: the largest voxel of the same
@@ -86,24 +108,16 @@ def pool_parents(vkey, vcell, vcentroid, vnormal, varea, dims, h, min_area, cut_
         for d0 in range(-1, 2):
             for d1 in range(-1, 2):
                 for d2 in range(-1, 2):
-                    x, y, z = vcell[i, 0] + d0, vcell[i, 1] + d1, vcell[i, 2] + d2
-                    if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                    key = _neighbour_key(vcell, i, d0, d1, d2, dims)
+                    if key < 0:
                         continue
-                    key = (np.int64(x) * dims[1] + y) * dims[2] + z
                     lo = np.searchsorted(vkey, key)
                     while lo < n and vkey[lo] == key:
                         j = lo
                         lo += 1
                         if j == i or varea[j] <= best_a or varea[j] <= varea[i]:
                             continue
-                        cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + \
-                            vnormal[i, 2] * vnormal[j, 2]
-                        plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
-                            (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
-                            (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                        if cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and \
-                                _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign, origin, h) and \
-                                _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
+                        if _same_surface(i, j, vcell, vcentroid, vnormal, cut_plane, cut_sign, origin, h):
                             best, best_a = j, varea[j]
         parent[i] = best
     return parent
@@ -154,21 +168,13 @@ def smooth_photons(bvh, vkey, vcell, vcentroid, vnormal, varea, dims, h, deposit
         for d0 in range(-1, 2):
             for d1 in range(-1, 2):
                 for d2 in range(-1, 2):
-                    x, y, z = vcell[i, 0] + d0, vcell[i, 1] + d1, vcell[i, 2] + d2
-                    if x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                    key = _neighbour_key(vcell, i, d0, d1, d2, dims)
+                    if key < 0:
                         continue
-                    key = (np.int64(x) * dims[1] + y) * dims[2] + z
                     j = np.searchsorted(vkey, key)
                     while j < n and vkey[j] == key:
                         if j != i:
-                            cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + \
-                                vnormal[i, 2] * vnormal[j, 2]
-                            plane = (vcentroid[i, 0] - vcentroid[j, 0]) * vnormal[j, 0] + \
-                                (vcentroid[i, 1] - vcentroid[j, 1]) * vnormal[j, 1] + \
-                                (vcentroid[i, 2] - vcentroid[j, 2]) * vnormal[j, 2]
-                            if cos > PARALLEL_COS and abs(plane) < POOL_PLANE * h and \
-                                    _same_side(i, j, vcell, vcentroid, cut_plane, cut_sign, origin, h) and \
-                                    _same_side(j, i, vcell, vcentroid, cut_plane, cut_sign, origin, h):
+                            if _same_surface(i, j, vcell, vcentroid, vnormal, cut_plane, cut_sign, origin, h):
                                 lj = deposited[j, 0] + deposited[j, 1] + deposited[j, 2]
                                 hj = lj / varea[j]
                                 # both counts' Poisson variance at the larger rate (what a sparse count of
