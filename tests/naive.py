@@ -55,19 +55,25 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
-                    kappa=1.0, trace=None, cut=None, sheet=None):
+                    kappa=1.0, trace=None, cut=None, sheet=None, flat=None):
     """Plain-Python linear propagation with the visibility rule of docs/design.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
     +1 before -1) and runs the waiting-list rule along s and -s.
     cut (n, 5): the plane and side of a surface that cut a voxel (cells;
     the kernel's CUT_REACH = 3 cells). sheet (n,) bool: a face of a
-    two-sided sheet (ties -1 first; never sees its sheet's back). Returns (gathered (n, 3), S (n,));
+    two-sided sheet (ties -1 first; never sees its sheet's back). flat (n,)
+    bool: a voxel on a flat stretch of surface (a grazing ray's gather on it
+    is deferred, over up to 3 cells, to the voxel of its plane the line
+    meets nearest where the ray meets it).
+    Returns (gathered (n, 3), S (n,));
     with trace=x, also the list of (family, sign, source voxel) voxel x
     gathered from."""
     n = len(cell)
     if sheet is None:
         sheet = np.zeros(n, bool)
+    if flat is None:
+        flat = np.zeros(n, bool)
     gathered = np.zeros((n, 3))
     quad = np.zeros(n)
     sources = []
@@ -96,7 +102,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     n_, d_ = cut[a][:3], cut[a][3]
                     sa, sb = dot(centroid[a], n_) - d_, dot(centroid[b], n_) - d_
                     if abs(sb) <= tau * h:  # b on that surface: the side it faces
-                        return 1 if dot(normal[b], n_) * sign < -0.5 else 0
+                        return (1 if a_waits else 2) if dot(normal[b], n_) * sign < -0.5 else 0
                     if sb * sign >= -tau * h or sa == sb:
                         return 0
                     way = 1 if dot(n_, u) * (sign if a_waits else -sign) < 0 else 2
@@ -120,6 +126,23 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     return 1 if dot(normal[q], u) * sx < 0 else 2  # x's ray heads for q's plane, or moves away
                 waiting, last = [], None
                 passed = {}  # waiting voxel -> the last voxel parallel to the line it passed, beyond tau of its plane
+                met = {}       # voxel -> the voxel its ray met (a deferred gather while it waits)
+                deferred = {}  # waiting voxel -> the flat voxel it deferred its gather on
+
+                def below(x, y):  # y beyond tau behind the plane x deferred its gather on
+                    p = deferred.get(x)
+                    return p is not None and dot(centroid[y] - centroid[p], normal[p]) < -tau * h - 1e-5 * h
+
+                def plane_t(x, p):  # how far along x's ray it meets p's plane
+                    op = dot(normal[p], u)
+                    return np.inf if op >= 0 else dot(centroid[x] - centroid[p], normal[p]) / -op
+
+                def defer(x, y, d, o):  # what x records on deferring its gather on flat y
+                    if x in deferred and plane_t(x, deferred[x]) < d / -o - tau * h:
+                        return deferred[x]
+                    deferred[x] = y
+                    return y
+
                 for y in sorted(members, key=order_key):
                     o = dot(normal[y], u)
                     if o == 0.0:
@@ -134,6 +157,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         edge_last = last is not None and sheet_edge(last)
                         keep = []
                         for x in waiting:
+                            if below(x, y):  # the line passed below the plane x deferred on: x keeps it
+                                continue
                             d = dot(centroid[x] - centroid[y], normal[y])
                             ex = dot(centroid[y] - centroid[x], normal[x])
                             backs = sheet[x] and sheet[y] and dot(normal[x], normal[y]) <= -0.5 and \
@@ -160,10 +185,20 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                     sy = dot(centroid[y] - centroid[w], normal[w])
                                     between = between or (sx > tau * h and sy < -tau * h) or \
                                         (sx < -tau * h and sy > tau * h)
-                                if not between:
-                                    gathered[x] += radiosity[y] * dot(normal[x], u) * weights[f]
-                                    if x == trace:
-                                        sources.append((f, sign, y))
+                                if between:
+                                    if x in deferred:
+                                        met.pop(x, None)
+                                    continue
+                                ty = dot(centroid[y] - centroid[x], u)
+                                above = d + ty * o
+                                val = y
+                                if flat[y] and above > tau * h + 1e-5 * h and above > -o * 0.5 * h + 1e-5 * h and \
+                                        above < -o * 3.0 * h - 1e-5 * h:
+                                    keep.append(x)  # deferred: the ray meets y's plane further on
+                                    val = defer(x, y, d, o)
+                                elif x in deferred and ty > plane_t(x, deferred[x]) + 1.0 * h:
+                                    val = deferred[x]  # the ray met that plane before it reached y
+                                met[x] = val
                             else:
                                 keep.append(x)
                         waiting = keep
@@ -173,12 +208,22 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                             ez = dot(centroid[y] - centroid[z], normal[z])
                             return dz < 0 and ez < tau * h and dz >= -kappa * h
                         edge_last = last is not None and convex(last)
-                        waiting = [x for x in waiting if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h
-                                   or edge_last or convex(x)]
+                        stay = []
+                        for x in waiting:
+                            if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h or edge_last or convex(x):
+                                stay.append(x)
+                            elif x in deferred and dot(centroid[y] - centroid[deferred[x]],
+                                                       normal[deferred[x]]) > tau * h + 1e-5 * h:
+                                met.pop(x, None)  # its ray hits y's back before the plane it deferred on
+                        waiting = stay
                         quad[y] += o * weights[f]
                         passed.pop(y, None)
                         waiting.append(y)
                         last = y
+                for x, y in met.items():
+                    gathered[x] += radiosity[y] * dot(normal[x], u) * weights[f]
+                    if x == trace:
+                        sources.append((f, sign, y))
     if trace is not None:
         return gathered, quad, sources
     return gathered, quad

@@ -4,6 +4,7 @@
 voxel each one's ray met (or -1). Each test fails if its clause is taken
 out of the kernel (checked by hand when the tests were written: the
 expected voxel changes)."""
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,17 +23,28 @@ class Line:
     two_sided: np.ndarray
     cut_sign: np.ndarray
     cut_plane: np.ndarray
+    planar: np.ndarray
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     cell_size: float = 1.0
 
     def __len__(self):
         return len(self.cell)
 
+    @property
+    def dims(self):
+        return self.cell.max(axis=0).astype(np.int64) + 2
+
+    @property
+    def key(self):
+        d = self.dims
+        return (self.cell[:, 0].astype(np.int64) * d[1] + self.cell[:, 1]) * d[2] + self.cell[:, 2]
+
 
 def line(*voxels):
     """voxels: dicts with x (centroid along the line), y (default 0.5),
-    n (normal, normalised here), sheet (bool) and cut (plane normal, plane
-    offset n . g, side +1/-1). Cells follow from the centroids; the order
+    n (normal, normalised here), sheet (bool), cut (plane normal, plane
+    offset n . g, side +1/-1) and flat (bool: planar, and flat when its
+    neighbours on the line lie on its plane). Cells follow from the centroids; the order
     given is the voxel order (a cell's voxels must be adjacent)."""
     c = np.array([[v["x"], v.get("y", 0.5), 0.5] for v in voxels])
     n = np.array([v["n"] for v in voxels], float)
@@ -48,7 +60,8 @@ def line(*voxels):
             plane[i, 3] = off - pn @ cell[i]  # relative to the voxel's cell, as Voxels stores it
     keys = [tuple(x) for x in cell]
     assert all(keys[i] <= keys[i + 1] for i in range(len(keys) - 1)), "voxels must come in x-major cell order"
-    return Line(cell, c, n, np.array([v.get("sheet", False) for v in voxels]), sign, plane)
+    return Line(cell, c, n, np.array([v.get("sheet", False) for v in voxels]), sign, plane,
+                np.array([v.get("flat", False) for v in voxels]))
 
 
 ALONG_X = DirectionSet(1, np.array([[1, 0, 0]], np.int32), np.array([0], np.int32), np.array([[1.0, 0, 0]]),
@@ -232,3 +245,38 @@ def test_flat_junction_of_two_facings_does_not_block():
                dict(x=1.3, y=0.38, n=(1, 0.3, 0)),
                dict(x=4.5, n=MINUS))
     assert seen(vox)[0] == 2
+
+
+def test_surface_that_cut_a_piece_passes_it_behind_its_plane():
+    """A wall's foot (on the plane that cut the floor's piece in its cell)
+    and the part of that piece under the wall, behind the wall's plane,
+    which the line meets after it (a box's side and the floor under
+    the box, ordered by centroid along a line a cell thick): the wall's ray
+    moves away from it and meets what lies beyond, not nothing."""
+    wall = ((1, 1, 0), 1.5 / np.sqrt(2), -1)  # the wall's plane through (1, 0.5), facing +x and +y
+    vox = line(dict(x=1.0, n=(1, 1, 0)),                           # the wall's foot, on that plane
+               dict(x=1.3, y=0.1, n=(-0.2, 1, 0), cut=wall),      # the cut part: behind it, after it on the line
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 2
+
+
+def floor_under_ray(ends_at=5):
+    """A box's side (cell 0, at height 0.9) sending along +x over a floor
+    tilted towards the ray (normal (-0.25, 1, 0)) whose plane the ray meets
+    at x = 3.6 (cell 3), floor voxels in cells 1 .. ends_at - 1, and a wall
+    facing the ray in cell 5."""
+    n = np.array([-0.25, 1.0, 0.0]) / np.hypot(0.25, 1.0)
+    p0 = np.array([3.6, 0.9, 0.5])  # where the ray from (0.5, 0.9) meets the floor's plane
+    floor = [dict(x=x, y=float(p0[1] + 0.25 * (x - p0[0])), n=tuple(n), flat=True)
+             for x in (1.5, 2.5, 3.5, 4.5)[:ends_at - 1]]
+    return line(dict(x=0.5, y=0.9, n=PLUS), *floor, dict(x=5.5, n=MINUS))
+
+
+def test_grazing_ray_gathers_a_flat_floor_where_it_meets_it():
+    """The line meets the floor's voxels from cell 1 on, the ray its plane
+    in cell 3: the gather lands there (the floor in a box's contact shadow,
+    next to it, is not what a grazing ray from the box's foot sees). Not
+    flat, the floor is gathered where the line meets it."""
+    vox = floor_under_ray()
+    assert seen(vox)[0] == 3
+    assert seen(dataclasses.replace(vox, planar=np.zeros(len(vox), bool)))[0] == 1

@@ -13,8 +13,10 @@ import numpy as np
 from ..errors import BudgetError
 from ..kernels.rng import LINE_OFFSET_BOUNCE_STRIDE, STREAM_LINE_OFFSETS, rand01
 from .directions import DirectionSet
+from ..voxels.lookup import flat_voxels
+from ..voxels.tolerances import FLAT_COS, FLAT_PLANE, SMOOTH_COS
 from .records import (C_CX, C_CZ, C_D, C_NX, C_NZ, CUT, LINE, MAX_CUT_ROWS, P_CUT, P_NX, P_NZ, P_SHEET, P_X, P_Z,
-                      POS)
+                      POS, SHEET_FLAT)
 from .sweep import HIT_BATCH, propagate_families
 
 TAU = 0.1     # plane tolerance, in cells (docs/design.md section 4)
@@ -33,7 +35,9 @@ class LineSweeper:
         pos = np.zeros((n, POS), np.float32)
         pos[:, P_X:P_Z + 1] = (voxels.centroid - voxels.origin) / voxels.cell_size
         pos[:, P_NX:P_NZ + 1] = voxels.normal
-        pos[:, P_SHEET] = np.asarray(voxels.two_sided, bool)
+        flat = flat_voxels(voxels.key, voxels.cell, voxels.centroid, voxels.normal, voxels.planar, voxels.dims,
+                           voxels.cell_size, SMOOTH_COS, FLAT_COS, FLAT_PLANE)
+        pos[:, P_SHEET] = np.asarray(voxels.two_sided, bool) + SHEET_FLAT * flat
         cut = np.nonzero(voxels.cut_sign != 0)[0]
         if len(cut) > MAX_CUT_ROWS:
             raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of {MAX_CUT_ROWS}; lower the "
@@ -88,7 +92,12 @@ class LineSweeper:
     @property
     def sheet(self) -> np.ndarray:
         """(n,) bool: faces of two-sided sheets, as the kernel sees them."""
-        return self.pos[:, P_SHEET] != 0
+        return (self.pos[:, P_SHEET] == 1) | (self.pos[:, P_SHEET] == 1 + SHEET_FLAT)
+
+    @property
+    def flat(self) -> np.ndarray:
+        """(n,) bool: voxels on a flat stretch of surface (lookup.flat_voxels), as the kernel sees them."""
+        return self.pos[:, P_SHEET] >= SHEET_FLAT
 
     @property
     def centroid(self) -> np.ndarray:

@@ -23,7 +23,9 @@ P_X, P_Y, P_Z = _u(0), _u(1), _u(2)      # centroid, grid coordinates (1e-7 of t
 P_NX, P_NY, P_NZ = _u(3), _u(4), _u(5)   # unit normal
 P_CUT = _u(6)    # 0: the voxel's pieces were not cut by another surface; else +-(row + 1): the side of the cutting
 #                  plane it lies on (the sign) and that plane's row in the cut table
-P_SHEET = _u(7)  # 1: a face of a two-sided sheet (its back is the other facing's voxel, at the same centroid)
+P_SHEET = _u(7)  # 1: a face of a two-sided sheet (its back is the other facing's voxel, at the same centroid);
+#                  plus SHEET_FLAT: the voxel lies on a flat stretch of surface (voxels.lookup.flat_voxels)
+SHEET_FLAT = 2.0
 MAX_CUT_ROWS = 2 ** 24 - 1  # rows a float32 P_CUT can name exactly
 
 # Cut table, `cutp` (m, CUT) float64, one row per cut voxel:
@@ -33,7 +35,7 @@ C_D = _u(3)                              # its offset: n . g = C_D for g on the 
 C_CX, C_CY, C_CZ = _u(4), _u(5), _u(6)   # the cut voxel's cell
 
 # Waiting records, `rec` (REC int32 per record; fields marked f hold float32 bits, read through `recf`):
-REC = 10
+REC = 11
 R_X, R_Y, R_Z = _u(0), _u(1), _u(2)      # f the waiting voxel's centroid
 R_NX, R_NY, R_NZ = _u(3), _u(4), _u(5)   # f its normal
 R_VOXEL = _u(6)   # its index in voxel order (-v-1 when its pieces were cut)
@@ -41,6 +43,8 @@ R_NEXT = _u(7)    # the next record of the line's list (EMPTY: the last)
 R_BOUND = _u(8)   # f a lower bound of (c_x - c) . n over the voxels waiting at and after this record, c and n
 #                   this record's centroid and normal
 R_PASSED = _u(9)  # the last voxel parallel to the line that it passed (EMPTY: none)
+R_DEFER = _u(10)  # the flat voxel whose gather it deferred, in the sweep's axis order (EMPTY: none;
+#                   visibility.defers)
 
 # Line table, `tab` (size, LINE) int32, one row per line id (dense) or hashed slot:
 LINE = 4
@@ -68,7 +72,8 @@ def cut_side(pos, v):
 @njit(cache=True, inline="always")
 def is_sheet(pos, v):
     """Is voxel v a face of a two-sided sheet?"""
-    return pos[v, P_SHEET] != 0.0
+    k = pos[v, P_SHEET]
+    return k == 1.0 or k == 1.0 + SHEET_FLAT
 
 
 # Helpers of the sweep (sweep.py says which of its steps are functions and why).

@@ -50,11 +50,12 @@ from numba import njit, prange
 
 from ..kernels.prefetch import prefetch
 from ..startup import checkpoint
-from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_NEXT, R_NX, R_NY,
-                      R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, T_HEAD, T_KEY, T_LAST, T_STAMP,
-                      flush_hits, unlink)
-from .visibility import (CHECK, GATHER, WAIT, convex_edge, front_check, front_min, front_outcome, hits_back,
-                         in_front, order_cell, passes_parallel, sheet_convex_edge)
+from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_DEFER, R_NEXT,
+                      R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, SHEET_FLAT, T_HEAD, T_KEY,
+                      T_LAST, T_STAMP, flush_hits, unlink)
+from .visibility import (CHECK, GATHER, WAIT, above_deferred, below_deferred, convex_edge, defer, deferred_t, defers,
+                         front_check, front_min, front_outcome, hits_back, in_front, order_cell, passes_parallel,
+                         sheet_convex_edge)
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
 AHEAD_HEAD = 16   # ... its first waiting record
@@ -165,7 +166,8 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 ny0, ny1, ny2 = float(pos[yr + P_NX]), float(pos[yr + P_NY]), float(pos[yr + P_NZ])
                 cy0, cy1, cy2 = float(pos[yr + P_X]), float(pos[yr + P_Y]), float(pos[yr + P_Z])
                 ycut = pos[yr + P_CUT] != 0.0
-                dmin = front_min(pos[yr + P_SHEET], tau)
+                kind = pos[yr + P_SHEET]
+                dmin = front_min(kind, tau)
                 # y the inner face of a convex two-sided surface the line runs along (visibility.front_check)
                 z_sheet = dmin == 0.0 and last != EMPTY and sheet_convex_edge(
                     float(pos2[last, P_X]), float(pos2[last, P_Y]), float(pos2[last, P_Z]), float(pos2[last, P_NX]),
@@ -175,6 +177,12 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 while j != EMPTY:
                     jr = np.uint64(REC * j)
                     nj = np.int64(rec[jr + R_NEXT])
+                    pv = np.int64(rec[jr + R_DEFER])
+                    if pv != EMPTY and below_deferred(pos_all, pv, cy0, cy1, cy2, tau):
+                        # the line passed below the plane x deferred its gather on: x keeps what it recorded
+                        head, nfree = unlink(j, nj, prev, head, rec, free, nfree)
+                        j = nj
+                        continue
                     d = (float(recf[jr + R_X]) - cy0) * ny0 + (float(recf[jr + R_Y]) - cy1) * ny1 + \
                         (float(recf[jr + R_Z]) - cy2) * ny2
                     if not in_front(d, dmin):  # x keeps waiting
@@ -191,18 +199,33 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                         prev = j
                         j = nj
                         continue
-                    if what == GATHER:
-                        # x's ray met y: record it, deferred (a store that misses the cache holds up every
-                        # later store; a prefetch holds up nothing): prefetch the slot now, write it RING
-                        # gathers later (1.1x at a million voxels)
+                    if what == GATHER or pv != EMPTY:
+                        # x's ray met y (or, hidden, clears a deferred gather): record it, deferred (a store
+                        # that misses the cache holds up every later store; a prefetch holds up nothing):
+                        # prefetch the slot now, write it RING gathers later (1.1x at a million voxels)
                         hp = np.uint64(x * nb + col)
                         prefetch(hit, hp)
                         slot = nh & (RING - 1)
                         if nh >= RING:
                             hit[ring_p[slot]] = ring_v[slot]
                         ring_p[slot] = hp
-                        ring_v[slot] = order[np.uint64(y)]
+                        val = order[np.uint64(y)] if what == GATHER else EMPTY
+                        wait = False
+                        if what == GATHER and (kind >= SHEET_FLAT or pv != EMPTY):
+                            ty = (cy0 - float(recf[jr + R_X])) * ux + (cy1 - float(recf[jr + R_Y])) * uy + \
+                                (cy2 - float(recf[jr + R_Z])) * uz
+                            if defers(kind, d, o, ty, tau):
+                                # the ray meets y's plane further on: x records the voxel there, keeps waiting
+                                val = defer(pv, val, d, o, rec, recf, jr, pos_all, ux, uy, uz, tau)
+                                wait = True
+                            elif pv >= 0 and ty > deferred_t(pv, rec, recf, jr, pos_all, ux, uy, uz) + 1.0:
+                                val = pv  # the ray met the plane it deferred on before it reached y
+                        ring_v[slot] = val
                         nh += 1
+                        if wait:
+                            prev = j
+                            j = nj
+                            continue
                     head, nfree = unlink(j, nj, prev, head, rec, free, nfree)  # x leaves the list
                     j = nj
             else:
@@ -240,6 +263,17 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
                     if hits_back(d, ex, z_edge, tau, kappa):
+                        pv = np.int64(rec[jr + R_DEFER])
+                        if pv != EMPTY and above_deferred(pos_all, pv, cy0, cy1, cy2, tau):
+                            # x's ray hits y's back before the plane it deferred its gather on: nothing
+                            xe = np.int64(rec[jr + R_VOXEL])
+                            hp = np.uint64((xe if xe >= 0 else -xe - 1) * nb + col)
+                            slot = nh & (RING - 1)
+                            if nh >= RING:
+                                hit[ring_p[slot]] = ring_v[slot]
+                            ring_p[slot] = hp
+                            ring_v[slot] = EMPTY
+                            nh += 1
                         head, nfree = unlink(j, nj, prev, head, rec, free, nfree)  # x leaves the list
                     else:
                         prev = j
@@ -262,6 +296,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 rec[jr + R_VOXEL] = -yv - 1 if pos[yr + P_CUT] != 0.0 else yv
                 rec[jr + R_NEXT] = head
                 rec[jr + R_PASSED] = EMPTY  # no surface along the line passed yet
+                rec[jr + R_DEFER] = EMPTY   # no gather deferred
                 head = j
                 last = y
         tab[tr + T_HEAD] = head

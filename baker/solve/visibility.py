@@ -50,7 +50,8 @@ from numba import njit
 
 from ..voxels.tolerances import SAME_PLANE_COS, SHEET_BACK_COS
 from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_X, P_Y,
-                      P_Z, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, cut_row, cut_side, is_sheet)
+                      P_Z, R_DEFER, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, SHEET_FLAT, cut_row,
+                      cut_side, is_sheet)
 
 CUT_REACH = 3.0        # cells around a cut voxel's cell where its cutting surface is taken to stand
 SEGMENT_REACH = 0.5    # cells beyond y's cell where a surface crossing it is taken to stand (the 26-connected
@@ -60,6 +61,13 @@ FACES_AWAY = -0.5      # a voxel on a cutting surface faces away from the cut pa
 OWN_BACK_COS = -0.5    # a sheet face within kappa of a waiting sheet face, facing it with a normal at least this
 #                        opposite, is that surface's own other face (a noisy curved sheet's faces in one cell split
 #                        into different facings: their normals can be 30-60 degrees off opposite)
+DEFER = 0.5           # cells along the ray beyond a flat voxel where the ray meets its plane: beyond this, the gather
+#                       is deferred (`defers`) to the voxel of that plane where the ray meets it
+DEFER_MAX = 3.0       # cells: ... and under this (a gather deferred further would keep its voxel waiting, tested
+#                       at every voxel the line meets, for as many cells: a bounce's cost would grow with the
+#                       grazing rays' length, not stay O(voxels x directions))
+DEFER_TIE = 1e-5      # cells: the deferral's tests clear their bounds by this (grid-aligned scenes put the ray's
+#                       height exactly on them, where the rounding of one sum or another would decide)
 CLEAR, HIDES, AWAY = 0, 1, 2  # a surface between x and y: none; in the way of x's ray; behind it (the ray moves
 #                               away from it: y is on the line only because the line is a cell thick)
 
@@ -132,7 +140,8 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
     when the waiting voxel's ray (along u; a_waits: a is the waiting voxel,
     else b) heads for that plane, AWAY when it moves away from or along it
     (y is on the line only because the line is a cell thick); b on that
-    surface facing away from a: HIDES; else CLEAR."""
+    surface facing away from a: HIDES when a waits, AWAY when b waits (a
+    lies behind b's own plane); else CLEAR."""
     if pa[a, P_CUT] == 0.0:
         return CLEAR
     sign = cut_side(pa, a)
@@ -143,9 +152,14 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
     sa = a0 * nx + a1 * ny + a2 * nz - d
     sb = b0 * nx + b1 * ny + b2 * nz - d
     if abs(sb) <= tau_h:
-        # b lies on that surface (a face of it, or of a sheet along it): the side it faces
+        # b lies on that surface (a face of it, or of a sheet along it): the side it faces. Facing
+        # away from a, it hides a from a waiting voxel a; a waiting voxel b on it leaves a behind
+        # its own plane (the floor under a box, met after the box's side on a line a cell thick):
+        # b's ray moves away from a, b keeps waiting
         facing = float(pb[b, P_NX]) * nx + float(pb[b, P_NY]) * ny + float(pb[b, P_NZ]) * nz
-        return HIDES if facing * sign < FACES_AWAY else CLEAR
+        if facing * sign < FACES_AWAY:
+            return HIDES if a_waits else AWAY
+        return CLEAR
     if sb * sign >= -tau_h or sa == sb:
         return CLEAR
     # the waiting voxel's ray heads for the plane from its side: the surface is in its way
@@ -304,7 +318,78 @@ def front_min(sheet, tau_h):
     field) a waiting voxel may lie and still see it: tau, or 0 for a face of
     a sheet (within tau behind it, its other face is the one facing the
     waiting voxel)."""
-    return 0.0 if sheet != 0.0 else -tau_h
+    return 0.0 if (sheet == 1.0 or sheet == 1.0 + SHEET_FLAT) else -tau_h
+
+
+@njit(cache=True, inline="always")
+def defers(kind, d, o, ty, tau_h):
+    """x gathers y, facing its ray (o = n_y . u < 0), with d = (c_x - c_y) . n_y
+    and ty = (c_y - c_x) . u (y's place along the ray). Does it defer the
+    gather? When y is flat (kind: its P_SHEET field) and x's ray passes
+    over y, beyond tau above y's plane, and meets that plane over DEFER
+    cells further on: a line a cell thick meets a floor, or a box's face,
+    at a grazing angle cells before the ray does (the light of a box's
+    base comes from the floor in its own contact shadow). x then records
+    y (`defer`) and keeps waiting: the next voxels of y's plane along the
+    line, or a surface the line meets before that plane, replace it, and x
+    keeps it when the line passes below that plane (`below_deferred`) or
+    ends (over a surface's edge too: the ray would pass it, but what lies
+    beyond is not known here). Deferred over DEFER_MAX cells at most: the
+    bounce's cost stays O(voxels x directions)."""
+    if kind < SHEET_FLAT:
+        return False
+    above = d + ty * o  # the ray's height over y's plane where it passes y
+    return above > tau_h + DEFER_TIE and above > -o * DEFER + DEFER_TIE and above < -o * DEFER_MAX - DEFER_TIE
+
+
+@njit(cache=True, inline="always")
+def below_deferred(pos_all, p, c0, c1, c2, tau_h):
+    """Does a voxel at (c0, c1, c2) lie beyond tau behind the plane of the
+    voxel p (voxel order) a waiting voxel deferred its gather on?
+    Then the line has passed below that plane: the ray met it, and the
+    waiting voxel keeps p."""
+    return (c0 - float(pos_all[p, P_X])) * float(pos_all[p, P_NX]) + \
+        (c1 - float(pos_all[p, P_Y])) * float(pos_all[p, P_NY]) + \
+        (c2 - float(pos_all[p, P_Z])) * float(pos_all[p, P_NZ]) < -tau_h - DEFER_TIE
+
+
+@njit(cache=True, inline="always")
+def above_deferred(pos_all, p, c0, c1, c2, tau_h):
+    """Does a voxel at (c0, c1, c2) lie beyond tau in front of the plane of
+    voxel p (voxel order), where a waiting voxel's deferred gather landed?
+    A back the ray hits there stands before that plane (a sheet's other
+    face on the plane itself does not)."""
+    return (c0 - float(pos_all[p, P_X])) * float(pos_all[p, P_NX]) + \
+        (c1 - float(pos_all[p, P_Y])) * float(pos_all[p, P_NY]) + \
+        (c2 - float(pos_all[p, P_Z])) * float(pos_all[p, P_NZ]) > tau_h + DEFER_TIE
+
+
+@njit(cache=True)
+def deferred_t(p, rec, recf, jr, pos_all, ux, uy, uz):
+    """How far along its ray (cells) the waiting voxel of record jr meets
+    the plane of voxel p (inf when the ray runs away from it)."""
+    n0, n1, n2 = float(pos_all[p, P_NX]), float(pos_all[p, P_NY]), float(pos_all[p, P_NZ])
+    o = n0 * ux + n1 * uy + n2 * uz
+    if o >= 0.0:
+        return np.inf
+    return ((float(recf[jr + R_X]) - float(pos_all[p, P_X])) * n0 + (float(recf[jr + R_Y]) - float(pos_all[p, P_Y])) *
+            n1 + (float(recf[jr + R_Z]) - float(pos_all[p, P_Z])) * n2) / -o
+
+
+@njit(cache=True)
+def defer(pv, yv, d, o, rec, recf, jr, pos_all, ux, uy, uz, tau_h):
+    """The waiting voxel x (record at jr, d and o as in `defers`) defers its
+    gather on flat y (yv: y in voxel order): it records y, the voxel of
+    y's plane furthest along the line so far, and keeps waiting: the
+    line's next voxels of that plane replace it (each passing the rule's
+    tests, as y did: a wall standing on the floor between stays in the
+    way), up to the one near where the ray meets the plane, which it
+    gathers. It keeps a plane it deferred on (pv, its R_DEFER) that the
+    ray meets first. Sets the record's R_DEFER; returns what x records."""
+    if pv != EMPTY and deferred_t(pv, rec, recf, jr, pos_all, ux, uy, uz) < d / -o - tau_h:
+        return pv
+    rec[jr + R_DEFER] = yv
+    return yv
 
 
 @njit(cache=True, inline="always")

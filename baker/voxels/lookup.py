@@ -193,3 +193,41 @@ def smooth_photons(bvh, vkey, vcell, vcentroid, vnormal, varea, dims, h, deposit
         out[i, 1] = p1 / a
         out[i, 2] = p2 / a
     return out
+
+
+@njit(cache=True, parallel=True)
+def flat_voxels(vkey, vcell, vcentroid, vnormal, planar, dims, h, smooth_cos, flat_cos, flat_plane):
+    """(n,) bool: voxels on a flat stretch of surface: planar themselves,
+    and every voxel in their cell or the 26 around it whose normal is
+    within smooth_cos of theirs (their surface, or one parallel to it) is
+    planar too, with a normal within flat_cos and a centroid within
+    flat_plane cells of their plane. A floor, a wall or a box's face is
+    flat up to its edges (a wall standing on a floor is another surface);
+    a tessellated sphere or a scan is not, nor a floor under a thin slab
+    resting on it a fraction of a cell above."""
+    n = vkey.shape[0]
+    out = np.zeros(n, np.bool_)
+    for i in prange(n):
+        if not planar[i]:
+            continue
+        ok = True
+        for d0 in range(-1, 2):
+            for d1 in range(-1, 2):
+                for d2 in range(-1, 2):
+                    key = _neighbour_key(vcell, i, d0, d1, d2, dims)
+                    if key < 0 or not ok:
+                        continue
+                    j = np.searchsorted(vkey, key)
+                    while j < n and vkey[j] == key and ok:
+                        if j != i:
+                            cos = vnormal[i, 0] * vnormal[j, 0] + vnormal[i, 1] * vnormal[j, 1] + \
+                                vnormal[i, 2] * vnormal[j, 2]
+                            if cos > smooth_cos:
+                                off = (vcentroid[j, 0] - vcentroid[i, 0]) * vnormal[i, 0] + \
+                                    (vcentroid[j, 1] - vcentroid[i, 1]) * vnormal[i, 1] + \
+                                    (vcentroid[j, 2] - vcentroid[i, 2]) * vnormal[i, 2]
+                                if not planar[j] or cos < flat_cos or abs(off) > flat_plane * h:
+                                    ok = False
+                        j += 1
+        out[i] = ok
+    return out

@@ -16,3 +16,8 @@ PARALLEL_COS = 0.9       # |cos| at least this: the planes are parallel (one doe
 SMOOTH_COS = 0.7         # triangles sharing an edge with normals within 45 degrees are one smooth surface in a cell
 #                          (a scan's or a fine tessellation's pieces; sharper creases are surfaces of their own)
 SAME_PLANE_COS = 0.999   # |cos| above this, with offsets within tau: the same plane
+FLAT_COS = 0.9999        # a voxel is flat when its pieces' normals, and those of the voxels of its surface in the 26
+FLAT_PLANE = 0.02        # cells around it (normals within 45 degrees, SMOOTH_COS), agree within this cosine (0.8
+#                          degrees) and their centroids lie within FLAT_PLANE cells of its plane: a floor, a wall, a
+#                          box's face; not a tessellated sphere or a scan (the propagation defers a grazing ray's
+#                          gather on a flat voxel to where the ray meets its plane, visibility.py)

@@ -42,7 +42,8 @@ from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separ
                     split_pieces)
 from .clip import clip_pieces, count_candidates
 from .patches import smooth_patches, triangle_adjacency
-from .tolerances import MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP, SMOOTH_COS
+from .tolerances import (FLAT_COS, MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP,
+                         SMOOTH_COS)
 
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
@@ -79,6 +80,7 @@ class Voxels:
     cut_sign: np.ndarray      # (n,) int8 +1 / -1: the voxel lies in front of / behind it; 0: not cut
     two_sided: np.ndarray     # (n,) bool: its largest piece is double-sided (a sheet: its back is the voxel
     #                           of the other facing in the cell, at the same centroid)
+    planar: np.ndarray        # (n,) bool: its pieces' normals agree within FLAT_COS (one plane, or nearly)
     piece_key: np.ndarray     # (m,) int64 cell key of each piece, sorted by (side, cell key)
     piece_voxel: np.ndarray   # (m,) int64 voxel of each piece
     piece_plane: np.ndarray   # (m, 4) float32 plane that cut a piece in two (as cut_plane, relative to its cell)
@@ -93,7 +95,7 @@ class Voxels:
     def nbytes(self) -> int:
         return sum(getattr(self, f).nbytes for f in ("cell", "facing", "key", "area", "normal", "centroid",
                                                      "albedo", "emission", "material", "cut_plane", "cut_sign",
-                                                     "two_sided", "piece_key", "piece_voxel", "piece_plane",
+                                                     "two_sided", "planar", "piece_key", "piece_voxel", "piece_plane",
                                                      "piece_sign", "side_start", "back_side"))
 
 
@@ -408,7 +410,8 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
                 centroid=grid.origin + cen / area[:, None] * h, albedo=alb / area[:, None],
                 emission=em / area[:, None], material=material,
                 cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=pieces.sign[order][starts],
-                two_sided=scene.double_sided[material].astype(bool))
+                two_sided=scene.double_sided[material].astype(bool),
+                planar=nl[:, 0] >= FLAT_COS * area)
 
 
 def piece_lookup(pieces: Pieces, key, order, vox_of, sides_tri, n_triangles):
