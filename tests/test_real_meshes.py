@@ -91,8 +91,8 @@ def test_box_foot_gathers_the_floor_where_its_rays_meet_it(cornell):
     (preview, r = 4): 0.23 of the continuous gather before the deferral
     over flat surfaces and the cut-floor clause, 0.73 after (default,
     r = 8: 0.25 and 0.67); most voxels now at 0.5-0.95, the one at the
-    block's corner still near 0 (the floor there is cut by the side's
-    plane, not the front's). Bound: above 0.6."""
+    block's corner still near 0 (its piece is marked as cut by the side's
+    plane, and the cut clause hides its rays across it). Bound: above 0.6."""
     import numpy as np
     from baker.solve.directions import direction_set
     from baker.solve.propagate import TAU, LineSweeper
