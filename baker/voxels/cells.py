@@ -190,7 +190,9 @@ def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, pat
     and smooth patches, not parallel to it, clearly on both sides (beyond tol cells): a surface
     standing between them inside the cell (a wall between two floors).
     Writes q's plane (normal, offset; grid units) into planes[i] and True
-    into has[i] for every piece i of such a cell."""
+    into has[i] for every piece i of such a cell, but a piece meeting q at
+    a convex edge (each behind the other's plane: a box's front and its
+    side in the cell of the box's corner): q stands behind it."""
     for r in range(runs.shape[0] - 1):
         a, b = runs[r], runs[r + 1]
         if b - a > 2:
@@ -215,6 +217,15 @@ def separating_planes(by_cell, runs, piece_tri, area, centroid, normal, tol, pat
                         p = by_cell[i]
                         if patch[p] == patch[q] and p != q:
                             continue  # q's own surface is not across itself
+                        if p != q:
+                            # p and q meeting at a convex edge (a box's front and its side, each behind the
+                            # other's plane): q stands behind p, never between p and what p faces
+                            mx, my, mz = normal[p, 0], normal[p, 1], normal[p, 2]
+                            dp = (centroid[p, 0] * mx + centroid[p, 1] * my + centroid[p, 2] * mz) / area[p]
+                            sp = (centroid[p, 0] * nx + centroid[p, 1] * ny + centroid[p, 2] * nz) / area[p] - d
+                            sq = (centroid[q, 0] * mx + centroid[q, 1] * my + centroid[q, 2] * mz) / area[q] - dp
+                            if sp < -tol and sq < -tol:
+                                continue
                         planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3] = nx, ny, nz, d
                         has[p] = True
                     break
