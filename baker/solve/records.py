@@ -43,8 +43,7 @@ R_NEXT = _u(7)    # the next record of the line's list (EMPTY: the last)
 R_BOUND = _u(8)   # f a lower bound of (c_x - c) . n over the voxels waiting at and after this record, c and n
 #                   this record's centroid and normal
 R_PASSED = _u(9)  # the last voxel parallel to the line that it passed (EMPTY: none)
-R_DEFER = _u(10)  # the flat voxel whose gather it deferred, in the sweep's axis order (EMPTY: none;
-#                   visibility.defers)
+R_DEFER = _u(10)  # the flat voxel (voxel order) it deferred its gather on (EMPTY: none; visibility.defers)
 
 # Line table, `tab` (size, LINE) int32, one row per line id (dense) or hashed slot:
 LINE = 4

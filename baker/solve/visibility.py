@@ -356,7 +356,7 @@ def below_deferred(pos_all, p, c0, c1, c2, tau_h):
 @njit(cache=True, inline="always")
 def above_deferred(pos_all, p, c0, c1, c2, tau_h):
     """Does a voxel at (c0, c1, c2) lie beyond tau in front of the plane of
-    voxel p (voxel order), where a waiting voxel's deferred gather landed?
+    voxel p (voxel order) a waiting voxel deferred its gather on?
     A back the ray hits there stands before that plane (a sheet's other
     face on the plane itself does not)."""
     return (c0 - float(pos_all[p, P_X])) * float(pos_all[p, P_NX]) + \
