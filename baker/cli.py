@@ -301,7 +301,8 @@ def cmd_bake(args):
     _check_common(args)
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
-                             preview_vpls=args.preview_vpls, resolution=args.resolution,
+                             preview_vpls=args.preview_vpls, texel_samples=args.texel_samples,
+                             resolution=args.resolution,
                              cell_size=args.cell_size, surface_cells=args.surface_cells,
                              photons_per_voxel=args.photons_per_voxel, photon_smoothing=args.photon_smoothing,
                              radius=args.radius, photons=args.photons,
@@ -486,6 +487,10 @@ def build_parser():
     p.add_argument("--preview-vpls", type=int, default=65_536,
                    help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
                         "0: none)")
+    p.add_argument("--texel-samples", type=int, metavar="N",
+                   help="anti-aliasing of lightcuts texels: where the light changes sharply across a texel (a "
+                        "shadow's edge, a contact) it takes the mean of an N x N grid of points (default: 2 for "
+                        "default, 4 for high; 1: one point per texel)")
     p.add_argument("--texels", choices=("voxels", "lightcuts"),
                    help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")

@@ -9,10 +9,13 @@ import numpy as np
 
 from ..config import SolverConfig, solver_config, threads
 from ..errors import ConfigError
+from ..lightmap import AA_CONTRAST
 from ..lights import LightcutsConfig, lightcuts_config
 from ..stats import Stats
 
 UV_MODES = ("per-triangle", "xatlas")
+TEXEL_SAMPLES = {"preview": 1, "default": 2, "high": 4}   # anti-aliasing grid side per preset (lightcuts texels)
+MAX_TEXEL_SAMPLES = 8
 
 
 @dataclass(frozen=True)
@@ -22,15 +25,26 @@ class BakeConfig:
     one texel per voxel cell); preset: the name it came from; lightcuts:
     how texels are shaded (None: the voxel solution reconstructed at each
     texel, the preview tier; else lightcuts over the VPLs, the default and
-    high tiers)."""
+    high tiers); texel_samples: lightcuts texels where the light changes
+    sharply (a shadow's edge, a contact) take the mean of a texel_samples
+    x texel_samples grid of points (1: one point per texel); texel_contrast:
+    what is sharp, a difference from a neighbouring texel of more than this
+    share of the larger."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
     preset: str = "default"
     lightcuts: LightcutsConfig | None = None
     preview_vpls: int = 65_536
+    texel_samples: int = 1
+    texel_contrast: float = AA_CONTRAST
 
     def __post_init__(self):
+        if not 1 <= self.texel_samples <= MAX_TEXEL_SAMPLES:
+            raise ConfigError(f"texel samples must be a grid side from 1 to {MAX_TEXEL_SAMPLES} "
+                              f"(got {self.texel_samples})")
+        if not 0 <= self.texel_contrast < 1:
+            raise ConfigError(f"texel contrast must lie in [0, 1) (got {self.texel_contrast})")
         if self.uv not in UV_MODES:
             raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
         if self.texel_density is not None and not (np.isfinite(self.texel_density) and self.texel_density > 0):
@@ -39,9 +53,11 @@ class BakeConfig:
 
 
 def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
-                direct_vpls=None, preview_vpls=65_536, **solver_overrides) -> BakeConfig:
+                direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
+                **solver_overrides) -> BakeConfig:
     """A preset's bake settings. texels: 'voxels' or 'lightcuts' (default:
-    voxels for preview, lightcuts for default and high)."""
+    voxels for preview, lightcuts for default and high); texel_samples:
+    the anti-aliasing grid (default: the preset's, TEXEL_SAMPLES)."""
     texels = texels or ("voxels" if preset == "preview" else "lightcuts")
     if texels not in ("voxels", "lightcuts"):
         raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
@@ -50,7 +66,10 @@ def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=
         if texels == "lightcuts" else None
     if preview_vpls is None or preview_vpls < 0:
         raise ConfigError(f"the preview's VPL count must be >= 0 (got {preview_vpls})")
-    return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls))
+    if texel_samples is None:
+        texel_samples = TEXEL_SAMPLES.get(preset, 1)
+    return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls), int(texel_samples),
+                      AA_CONTRAST if texel_contrast is None else float(texel_contrast))
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
@@ -92,7 +111,8 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
         shading.update(lights.vpls.counts())
         with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
             texels, st = lightcuts_texels(scene, solution, bvh, surfaces, charts, lights, lc.epsilon, lc.cap,
-                                          config.solver.seed, b.update)
+                                          config.solver.seed, b.update, config.texel_samples,
+                                          config.texel_contrast)
         shading.update(st, epsilon=lc.epsilon, cut_cap=lc.cap)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
@@ -105,6 +125,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
             "texel_values": "voxel solution (reconstructed at each texel)" if config.lightcuts is None else
             "lightcuts over the VPLs", "solver": asdict(config.solver),
             "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
+            "texel_samples": config.texel_samples if config.lightcuts else 1,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}

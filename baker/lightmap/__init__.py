@@ -11,11 +11,15 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import INSET, fill, inside_geometry, texel_points
+from .texels import INSET, contrast_texels, fill, inside_geometry, sub_texel_points, texel_points
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
 
 LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far off their surface for rays
+AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
+BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
+LUM = np.array([0.2126, 0.7152, 0.0722])
+CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
 
 
 @dataclass(frozen=True)
@@ -58,18 +62,20 @@ def layout_for(scene, texel_size, uv="per-triangle"):
 
 
 def sample_points(layout, corners, inset=0.0):
-    """(map_offsets, map_size, point, covered, texel_tri, texel_back);
-    points clamped onto an edge move `inset` texels inward (texels.inset)."""
+    """(map_offsets, map_size, point, covered, texel_tri, texel_back, owner,
+    corners2d): points clamped onto an edge move `inset` texels inward
+    (texels.inset); texel k's triangle side has its corners at
+    corners2d[owner[k]] (3, 2) in its map's texel units."""
     if isinstance(layout, XatlasLayout):
-        point, covered, tri, back = xatlas_texels(layout, corners, inset)
+        point, covered, tri, back, face = xatlas_texels(layout, corners, inset)
         size = np.full(layout.n_pages, PAGE, np.int64)
         off = np.arange(layout.n_pages + 1, dtype=np.int64) * PAGE * PAGE
-        return off, size, point, covered, tri, back
+        return off, size, point, covered, tri, back, face, layout.uv
     off = layout.offsets
     size = layout.size.astype(np.int64)
     point, covered = texel_points(corners, layout.tri, layout.corners2d, layout.size, off, float(inset))
-    per = np.repeat(np.arange(len(layout)), size ** 2)
-    return off, size, point, covered, layout.tri[per].astype(np.int32), layout.back[per]
+    per = np.repeat(np.arange(len(layout), dtype=np.int32), size ** 2)
+    return off, size, point, covered, layout.tri[per].astype(np.int32), layout.back[per], per, layout.corners2d
 
 
 def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
@@ -77,16 +83,30 @@ def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
     vox = solution.voxels
     h = float(vox.cell_size)
     corners = surfaces.arrays.corners
-    off, size, point, covered, ttri, tback = sample_points(layout, corners)
+    off, size, point, covered, ttri, tback, owner, _ = sample_points(layout, corners)
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
+    small, cpts = corner_points(layout, corners)
+    by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
-                             tback, point, covered, lift, np.inf, seed)
-    values, found = reconstruct(bvh.arrays, corners, ttri, tback, point, covered,
-                                np.ascontiguousarray(solution.irradiance), vox.key, vox.cell, vox.centroid,
-                                vox.normal, vox.area, vox.cut_plane, vox.cut_sign, vox.piece_key, vox.piece_voxel,
-                                vox.piece_plane, vox.piece_sign, vox.side_start, vox.back_side, vox.origin, h,
-                                vox.dims, lift)
+                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+
+    def at(tri, back, pts, ok):
+        return reconstruct(bvh.arrays, corners, tri, back, pts, ok, np.ascontiguousarray(solution.irradiance),
+                           vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.cut_plane, vox.cut_sign,
+                           vox.piece_key, vox.piece_voxel, vox.piece_plane, vox.piece_sign, vox.side_start,
+                           vox.back_side, vox.origin, h, vox.dims, lift)
+
+    values, found = at(ttri, tback, point, covered & ~by_corners)
+    if len(small):  # sub-texel triangles: the solution at their corner points, interpolated (as lightcuts_texels)
+        cv, cf = at(np.repeat(layout.tri[small], 3).astype(np.int32), np.repeat(layout.back[small], 3),
+                    np.ascontiguousarray(cpts.reshape(-1, 3)), np.ones(3 * len(small), bool))
+        cv, cf = cv.reshape(-1, 3, 3), cf.reshape(-1, 3)
+        n = cf.sum(axis=1)
+        mean = (cv * cf[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
+        cv = np.where(cf[..., None], cv, mean[:, None, :])   # a corner that found no voxel: the others' mean
+        idx = corner_values(layout, corners, small, cv, point, off, values)
+        found[idx] = np.repeat(n > 0, layout.size[small].astype(np.int64) ** 2)
     return finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
 
 
@@ -101,38 +121,109 @@ def side_normals(corners, texel_tri, texel_back):
 
 
 def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.02, cap=1000, seed=0,
-                     progress=None) -> TexelSet:
+                     progress=None, samples=1, contrast=AA_CONTRAST) -> TexelSet:
     """The default and high tiers: each texel's irradiance by lightcuts over
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
-    indirect from the voxels'), at its sample point, on its side."""
+    indirect from the voxels'), at its sample point, on its side.
+    Sub-texel triangles are shaded at their three corner points and
+    interpolated over their maps (corner_points). Then anti-aliasing:
+    texels that differ from a neighbour by more than `contrast` (a shadow's
+    edge, a contact) take the mean of a samples x samples grid of points
+    over their square instead (samples 1: off; texels.sub_texel_points)."""
     from ..lights import irradiance
     from ..startup import checkpoint
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
-    off, size, point, covered, ttri, tback = sample_points(layout, corners, INSET)
+    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET)
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
+    small, cpts = corner_points(layout, corners)
+    by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
+    # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
-                             tback, point, covered, lift, np.inf, seed)
+                             tback, point, covered & ~by_corners, lift, np.inf, seed)
     normals = side_normals(corners, ttri, tback)
-    todo = np.nonzero(covered & (ttri >= 0))[0]
-    values = np.zeros((len(point), 3))
-    cuts = np.zeros(len(point), np.int64)
-    rays = np.zeros(len(point), np.int64)
-    batch = 1 << 15
-    for a in range(0, len(todo), batch):
-        idx = todo[a:a + batch]
-        values[idx], cuts[idx], rays[idx] = irradiance(lights, bvh, surfaces, point[idx], normals[idx], None, lift,
-                                                       epsilon, cap)
-        checkpoint()
-        if progress is not None:
-            progress(len(idx))
     found = covered & (ttri >= 0)
+    values = np.zeros((len(point), 3))
+    cuts, rays = [], [0]
+
+    def shade(pts, nrm, ok):
+        out = np.zeros((len(pts), 3))
+        for a in range(0, len(pts), BATCH):
+            b = slice(a, a + BATCH)
+            out[b], c, r = irradiance(lights, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, cap)
+            cuts.append(c[ok[b]])
+            rays[0] += int(r.sum())
+            checkpoint()
+            if progress is not None:
+                progress(int(ok[b].sum()))
+        return out
+
+    if len(small):
+        cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
+        cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
+        corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
+    todo = np.nonzero(found & ~by_corners)[0]
+    values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+    aa = np.zeros(0, np.int64)
+    if samples > 1:
+        valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
+        reach = np.inf if isinstance(layout, Charts) else 2.5 * texel  # an xatlas page's neighbour may be another chart
+        aa = np.nonzero(contrast_texels(values @ LUM, valid, point, off, size, reach, float(contrast)))[0]
+        if len(aa):
+            m = np.searchsorted(off, aa, side="right") - 1
+            pts, ok = sub_texel_points(bvh.arrays, corners, aa, owner, q_all, off[m], size[m], ttri, tback, point,
+                                       int(samples), float(INSET), lift)
+            n_sub = samples * samples
+            sub = shade(pts, np.repeat(normals[aa], n_sub, axis=0), ok)
+            n_ok = ok.reshape(-1, n_sub).sum(axis=1)
+            mean = sub.reshape(-1, n_sub, 3).sum(axis=1) / np.maximum(n_ok, 1)[:, None]
+            keep = n_ok > 0  # every sub-point hidden from the texel's own: its own value stays
+            values[aa[keep]] = mean[keep]
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
-    shaded = found & ~inside
-    stats = {"cut_mean": float(cuts[shaded].mean()) if shaded.any() else 0.0, "cut_max": int(cuts.max(initial=0)),
-             "shadow_rays": int(rays.sum()), "texels_shaded": int(found.sum())}
+    cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
+    stats = {"cut_mean": float(cuts.mean()) if len(cuts) else 0.0, "cut_max": int(cuts.max(initial=0)),
+             "shadow_rays": rays[0], "points_shaded": int(len(cuts)), "texels_shaded": int(len(todo)),
+             "subtexel_triangles": int(len(small)), "texels_antialiased": int(len(aa)),
+             "texel_samples": int(samples)}
     return ts, stats
+
+
+def corner_points(layout, corners):
+    """The charts of sub-texel triangles (Charts.subtexel; none for xatlas
+    layouts, whose texels follow the surface's area, not its triangles) and
+    their shading points (m, 3, 3): each corner moved CORNER_IN of the way
+    towards the centroid (off the edge where a neighbouring surface may
+    meet it: the same reason as texels.INSET)."""
+    if not isinstance(layout, Charts) or not layout.subtexel.any():
+        return np.zeros(0, np.int64), np.zeros((0, 3, 3))
+    charts = np.nonzero(layout.subtexel)[0]
+    c = corners[layout.tri[charts]]
+    return charts, c + CORNER_IN * (c.mean(axis=1, keepdims=True) - c)
+
+
+def corner_values(layout, corners, charts, values_at_corners, point, off, values):
+    """Fills, in place, the texels of the sub-texel charts `charts` from the
+    values at their corner points (m, 3, 3): linear in the texel's point
+    over the triangle (barycentrics taken against the corner points,
+    extrapolated a little towards the true corners), never below 0."""
+    size = layout.size[charts].astype(np.int64) ** 2
+    idx = np.concatenate([np.arange(off[c], off[c] + n) for c, n in zip(charts, size)]) if len(charts) else \
+        np.zeros(0, np.int64)
+    which = np.repeat(np.arange(len(charts)), size)
+    tri = corners[layout.tri[charts]][which]
+    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    d = point[idx] - a
+    d00, d01, d11 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    d20, d21 = (d * e1).sum(1), (d * e2).sum(1)
+    den = d00 * d11 - d01 * d01
+    b1 = (d11 * d20 - d01 * d21) / den
+    b2 = (d00 * d21 - d01 * d20) / den
+    bary = np.stack([1 - b1 - b2, b1, b2], axis=1)
+    bary = (bary - CORNER_IN / 3) / (1 - CORNER_IN)      # against the corner points
+    v = np.einsum("nk,nkc->nc", bary, values_at_corners[which])
+    values[idx] = np.maximum(v, 0.0)
+    return idx
 
 
 def finish(layout, off, size, ttri, tback, point, covered, inside, values, found) -> TexelSet:

@@ -34,7 +34,11 @@ class Charts:
     origin (nc, 2) float64 lower corner in texel units; size (nc,) int32
     power-of-two side; texel (nc,) float64 texel size in scene units;
     corners2d (nc, 3, 2) float64 the triangle's corners in the chart's
-    texel units (0 .. size), the per-triangle UVs times size."""
+    texel units (0 .. size), the per-triangle UVs times size; subtexel
+    (nc,) bool: the triangle is no wider than one texel of the size asked
+    for (a scan's or a dense mesh's triangle), so its light is sampled at
+    its three corners and interpolated over its map, not texel by texel
+    (lightmap.corner_values)."""
     tri: np.ndarray
     back: np.ndarray
     axis: np.ndarray
@@ -42,6 +46,7 @@ class Charts:
     size: np.ndarray
     texel: np.ndarray
     corners2d: np.ndarray
+    subtexel: np.ndarray
 
     def __len__(self):
         return len(self.tri)
@@ -88,6 +93,7 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     span = np.ptp(p2, axis=1).max(axis=1)
     fine = float(MIN_SIZE - 2 * BORDER)
     small = span < fine * texel
+    subtexel = span <= texel
     texel[small] = np.maximum(span[small] / fine, texel[small] / MAX_REFINE)
     for _ in range(64):  # coarser texels for triangles too large for a page
         lo = p2.min(axis=1) / texel[:, None]
@@ -102,4 +108,4 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     pad = (size[:, None] - (hi - lo)) / 2
     origin = lo - pad
     corners2d = p2 / texel[:, None, None] - origin[:, None, :]
-    return Charts(tri, back, axis, origin, size, texel, corners2d)
+    return Charts(tri, back, axis, origin, size, texel, corners2d, subtexel)

@@ -35,7 +35,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.rng import mix64
 from ..kernels.sampling import frame
-from ..kernels.traverse import closest_hit, hit_normal
+from ..kernels.traverse import any_hit, closest_hit, hit_normal
 
 COVER = 1.5           # texels: centres this near the triangle are sampled
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
@@ -196,6 +196,17 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
     return out
 
 
+@njit(cache=True, inline="always")
+def neighbour(o, s, i, j, e):
+    """Flat index of 4-neighbour e (0: +i, 1: -i, 2: +j, 3: -j) of texel
+    (i, j) of the s x s map at offset o; -1 off the map."""
+    ii = i + (1 if e == 0 else (-1 if e == 1 else 0))
+    jj = j + (1 if e == 2 else (-1 if e == 3 else 0))
+    if ii < 0 or jj < 0 or ii >= s or jj >= s:
+        return -1
+    return o + jj * s + ii
+
+
 @njit(cache=True, parallel=True)
 def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
     """Fills, in place, the empty texels within city-block distance <=
@@ -216,12 +227,8 @@ def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
                     a0 = a1 = a2 = 0.0
                     m = 0
                     for e in range(4):
-                        ii = i + (1 if e == 0 else (-1 if e == 1 else 0))
-                        jj = j + (1 if e == 2 else (-1 if e == 3 else 0))
-                        if ii < 0 or jj < 0 or ii >= s or jj >= s:
-                            continue
-                        kk = o + jj * s + ii
-                        if filled[kk]:
+                        kk = neighbour(o, s, i, j, e)
+                        if kk >= 0 and filled[kk]:
                             a0 += values[kk, 0]
                             a1 += values[kk, 1]
                             a2 += values[kk, 2]
@@ -234,3 +241,80 @@ def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
             for q in range(s * s):
                 if new[q]:
                     filled[o + q] = True
+
+
+@njit(cache=True, parallel=True)
+def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texel_tri, texel_back, point, side,
+                     amount, lift):
+    """Anti-aliasing points of the texels `texels` (m,): a side x side grid
+    of sub-texel centres over each texel's square, each taken to the point
+    of the texel's triangle nearest to it (moved inward as the texel's own
+    point, `inset`). owner (N,) indexes q_all (n, 3, 2): the triangle's
+    corners in its map's texel units; map_off (m,) and map_size (m,): the
+    first texel and the side of each texel's map. Returns points
+    (m * side^2, 3) and ok (m * side^2,) bool: False where the segment from
+    the texel's own point to the sub-point (both lifted `lift` along the
+    side's normal) is blocked, a sub-point under a box standing on the
+    floor or beyond a wall meeting the surface, which a viewer never shows
+    on this side: such points are left out of the texel's mean."""
+    m = texels.shape[0]
+    n_sub = side * side
+    pts = np.zeros((m * n_sub, 3))
+    ok = np.zeros(m * n_sub, np.bool_)
+    for e in prange(m):
+        stack = np.empty(STACK_SIZE, np.int32)
+        k = texels[e]
+        t = texel_tri[k]
+        q = q_all[owner[k]]
+        s = map_size[e]
+        local = k - map_off[e]
+        i, j = local % s, local // s
+        nx, ny, nz = side_normal(corners, t, texel_back[k])
+        ox, oy, oz = point[k, 0] + lift * nx, point[k, 1] + lift * ny, point[k, 2] + lift * nz
+        for sub in range(n_sub):
+            px = i + (sub % side + 0.5) / side
+            py = j + (sub // side + 0.5) / side
+            wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
+            dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
+            dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
+            wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > 0.0, q, amount)
+            r = e * n_sub + sub
+            for a in range(3):
+                pts[r, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
+            ex, ey, ez = pts[r, 0] + lift * nx - ox, pts[r, 1] + lift * ny - oy, pts[r, 2] + lift * nz - oz
+            d = math.sqrt(ex * ex + ey * ey + ez * ez)
+            ok[r] = d <= 0.0 or not any_hit(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d)
+    return pts, ok
+
+
+@njit(cache=True, parallel=True)
+def contrast_texels(lum, valid, point, map_off, map_size, reach, contrast):
+    """(N,) bool: valid texels whose luminance differs from a valid
+    4-neighbour in their map (whose point lies within `reach` scene units:
+    a neighbour across a chart boundary on an xatlas page is another
+    surface) by more than `contrast` of the larger of the two: the texels
+    where a shadow's edge or a contact crosses the texel, which a single
+    point per texel aliases."""
+    out = np.zeros(lum.shape[0], np.bool_)
+    r2 = reach * reach
+    for c in prange(map_size.shape[0]):
+        s = map_size[c]
+        o = map_off[c]
+        for j in range(s):
+            for i in range(s):
+                k = o + j * s + i
+                if not valid[k]:
+                    continue
+                for e in range(4):
+                    kk = neighbour(o, s, i, j, e)
+                    if kk < 0 or not valid[kk]:
+                        continue
+                    d = 0.0
+                    for a in range(3):
+                        d += (point[k, a] - point[kk, a]) ** 2
+                    if d > r2:
+                        continue
+                    if abs(lum[k] - lum[kk]) > contrast * max(lum[k], lum[kk]):
+                        out[k] = True
+                        break
+    return out

@@ -110,7 +110,8 @@ def _rasterize(uv, page, n_pages, size, amount):
 
 def xatlas_texels(layout: XatlasLayout, corners, amount=0.0):
     """Sample points (N, 3), covered (N,), texel_tri (N,) int32, texel_back
-    (N,) bool of every texel of every page (page-major, row-major)."""
+    (N,) bool and face (N,) int32 (the layout's triangle side, -1: none) of
+    every texel of every page (page-major, row-major)."""
     face, bary = _rasterize(layout.uv, layout.page, layout.n_pages, PAGE, float(amount))
     covered = face >= 0
     f = np.where(covered, face, 0)
@@ -119,4 +120,4 @@ def xatlas_texels(layout: XatlasLayout, corners, amount=0.0):
     point = np.einsum("nk,nkc->nc", bary, c)
     texel_tri = np.where(covered, tri, -1).astype(np.int32)
     texel_back = np.where(covered, layout.back[f], False)
-    return point, covered, texel_tri, texel_back
+    return point, covered, texel_tri, texel_back, face
