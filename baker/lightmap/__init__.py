@@ -11,7 +11,8 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import INSET, contrast_texels, fill, inside_geometry, sub_texel_points, texel_points
+from .texels import (INSET, contrast_texels, fill, inside_geometry, interpolate_corners, sub_texel_points,
+                     texel_points)
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
 
@@ -206,24 +207,12 @@ def corner_values(layout, corners, charts, values_at_corners, point, off, values
     """Fills, in place, the texels of the sub-texel charts `charts` from the
     values at their corner points (m, 3, 3): linear in the texel's point
     over the triangle (barycentrics taken against the corner points,
-    extrapolated a little towards the true corners), never below 0."""
+    extrapolated a little towards the true corners), never below 0.
+    Returns the texels filled."""
+    interpolate_corners(corners, layout.tri[charts], off[charts], layout.size[charts].astype(np.int64),
+                        np.ascontiguousarray(values_at_corners, np.float64), point, float(CORNER_IN), values)
     size = layout.size[charts].astype(np.int64) ** 2
-    idx = np.concatenate([np.arange(off[c], off[c] + n) for c, n in zip(charts, size)]) if len(charts) else \
-        np.zeros(0, np.int64)
-    which = np.repeat(np.arange(len(charts)), size)
-    tri = corners[layout.tri[charts]][which]
-    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    d = point[idx] - a
-    d00, d01, d11 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    d20, d21 = (d * e1).sum(1), (d * e2).sum(1)
-    den = d00 * d11 - d01 * d01
-    b1 = (d11 * d20 - d01 * d21) / den
-    b2 = (d00 * d21 - d01 * d20) / den
-    bary = np.stack([1 - b1 - b2, b1, b2], axis=1)
-    bary = (bary - CORNER_IN / 3) / (1 - CORNER_IN)      # against the corner points
-    v = np.einsum("nk,nkc->nc", bary, values_at_corners[which])
-    values[idx] = np.maximum(v, 0.0)
-    return idx
+    return np.repeat(off[charts] - np.cumsum(size) + size, size) + np.arange(int(size.sum()))
 
 
 def finish(layout, off, size, ttri, tback, point, covered, inside, values, found) -> TexelSet:

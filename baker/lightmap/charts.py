@@ -26,6 +26,7 @@ BORDER = 2        # texels around the triangle's bounding rectangle
 MIN_SIZE = 8      # the smallest map (and the quadtree's smallest node)
 MAX_SIZE = 512    # a page: no map is larger
 MAX_REFINE = 16   # a small triangle's texels are at most this much finer than the texel size asked for
+SUBTEXEL_SPAN = 2  # texels: triangles no wider are shaded at their corners (Charts.subtexel)
 
 
 @dataclass(frozen=True)
@@ -35,10 +36,11 @@ class Charts:
     power-of-two side; texel (nc,) float64 texel size in scene units;
     corners2d (nc, 3, 2) float64 the triangle's corners in the chart's
     texel units (0 .. size), the per-triangle UVs times size; subtexel
-    (nc,) bool: the triangle is no wider than one texel of the size asked
-    for (a scan's or a dense mesh's triangle), so its light is sampled at
-    its three corners and interpolated over its map, not texel by texel
-    (lightmap.corner_values)."""
+    (nc,) bool: the triangle is no wider than SUBTEXEL_SPAN texels of the
+    size asked for (a scan's or a dense mesh's triangle), so its light is
+    sampled at its three corners and interpolated over its map, not texel
+    by texel (lightmap.corner_values): at that density its own texels
+    would sample it at no more than about SUBTEXEL_SPAN^2 / 2 = 2 points."""
     tri: np.ndarray
     back: np.ndarray
     axis: np.ndarray
@@ -93,7 +95,7 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     span = np.ptp(p2, axis=1).max(axis=1)
     fine = float(MIN_SIZE - 2 * BORDER)
     small = span < fine * texel
-    subtexel = span <= texel
+    subtexel = span <= SUBTEXEL_SPAN * texel
     texel[small] = np.maximum(span[small] / fine, texel[small] / MAX_REFINE)
     for _ in range(64):  # coarser texels for triangles too large for a page
         lo = p2.min(axis=1) / texel[:, None]

@@ -318,3 +318,30 @@ def contrast_texels(lum, valid, point, map_off, map_size, reach, contrast):
                         out[k] = True
                         break
     return out
+
+
+@njit(cache=True, parallel=True)
+def interpolate_corners(corners, tri, first, size, at_corners, point, corner_in, values):
+    """values[k] for every texel k of the maps at first[c] (size[c]^2
+    texels, triangle tri[c]): linear in point[k] through the three values
+    at_corners[c] (3, 3) taken at the corners moved corner_in of the way to
+    the centroid; never below 0."""
+    for c in prange(tri.shape[0]):
+        t = tri[c]
+        e1 = corners[t, 1] - corners[t, 0]
+        e2 = corners[t, 2] - corners[t, 0]
+        d00, d01, d11 = np.dot(e1, e1), np.dot(e1, e2), np.dot(e2, e2)
+        den = d00 * d11 - d01 * d01
+        for k in range(first[c], first[c] + size[c] * size[c]):
+            d20 = d21 = 0.0
+            for a in range(3):
+                d = point[k, a] - corners[t, 0, a]
+                d20 += d * e1[a]
+                d21 += d * e2[a]
+            b1 = (d11 * d20 - d01 * d21) / den
+            b2 = (d00 * d21 - d01 * d20) / den
+            w = ((1.0 - b1 - b2 - corner_in / 3) / (1.0 - corner_in), (b1 - corner_in / 3) / (1.0 - corner_in),
+                 (b2 - corner_in / 3) / (1.0 - corner_in))
+            for ch in range(3):
+                values[k, ch] = max(0.0, w[0] * at_corners[c, 0, ch] + w[1] * at_corners[c, 1, ch]
+                                    + w[2] * at_corners[c, 2, ch])
