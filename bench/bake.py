@@ -20,7 +20,7 @@ import numpy as np
 from common import ROOT, emit
 
 PRESETS = ("preview", "default", "high")
-STAGES = ("bvh", "voxelize", "photons", "propagation", "texels", "atlas", "write")
+STAGES = ("bvh", "voxelize", "photons", "propagation", "charts", "lights", "texels", "atlas", "write")
 
 
 def bake(scene, preset, out, stats):
@@ -65,7 +65,9 @@ def main():
                 runs.append(bake(scene, preset, out, st))
             c = runs[-1]["counters"]
             stage = {s: rng([r["stages"].get(s, {}).get("seconds", 0.0) for r in runs]) for s in STAGES}
-            rows.append([scene, preset, f"{c['voxels']:,}", f"{c['texels']:,}", f"{c['unique']:,}/{c['maps']:,}",
+            shaded = f"{c['points_shaded']:,}" if "points_shaded" in c else "-"
+            rows.append([scene, preset, f"{c['voxels']:,}", f"{c['texels']:,}", shaded,
+                         f"{c['unique']:,}/{c['maps']:,}",
                          c["pages"], f"{c['dedup_ratio']:.2f}", *stage.values(),
                          rng([r["total_seconds"] for r in runs]), rng([r["peak_rss_mb"] for r in runs], "{:.0f}")])
             if scene == "cornell_box":
@@ -81,7 +83,7 @@ def main():
                 err = image_error(out, ref, 128)
                 error_rows.append([preset, rng([r["total_seconds"] for r in runs]), f"{100 * err:.2f}%"])
     emit(args, "voxbake bake: stages (seconds, min-max over runs), counts, peak memory", rows,
-         ["scene", "preset", "voxels", "texels", "maps stored/all", "pages", "dedup", *STAGES, "total s",
+         ["scene", "preset", "voxels", "texels", "points shaded", "maps stored/all", "pages", "dedup", *STAGES, "total s",
           "peak MiB"])
     if error_rows:
         emit(args, f"Cornell box bake as the viewer shows it vs the path tracer ({args.ref_spp} spp, 128x128): "
