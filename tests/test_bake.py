@@ -506,3 +506,37 @@ def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
     err = np.abs(tx.values[k, 0] / want - 1)
     assert err.max() < 3e-3, err.max()
     assert err.mean() > 1e-6    # interpolated, not the light at each point
+
+
+def test_texels_across_a_shared_edge_sample_their_own_centre(make_scene):
+    """A floor quad (two triangles, each with its own map) under a point
+    light: every covered texel whose centre lies on the floor, on either
+    side of the diagonal the two triangles share, holds the light at its
+    own centre (to the 1e-4 nudge every point gets), so the two maps agree along the diagonal and
+    bilinear filtering shows no seam. (Clamped onto the triangle's edge and
+    moved inward, as at a surface's true edge, a texel across the diagonal
+    would hold the light half a texel inside its own triangle.) Texels
+    beyond the floor's outer edge stay clamped."""
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)),
+           b.material("black", (0.0,) * 3))
+    b.light("bulb", "point", intensity=I_BULB, position=(0.3, 1.2, -0.4))
+    scene = make_scene(b, "bake_floor_quad")
+    _, _, tx, _ = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+                                                texel_samples=1))
+    ch = tx.layout
+    across = 0
+    for c in range(len(ch)):
+        s, t, o = int(ch.size[c]), float(ch.texel[c]), ch.origin[c]
+        i, j = np.meshgrid(np.arange(s), np.arange(s))
+        x, z = ((o[0] + i.ravel() + 0.5) * t, (o[1] + j.ravel() + 0.5) * t)
+        k = tx.map_offsets[c] + np.arange(s * s)
+        on = tx.covered[k] & (np.abs(x) < 2 - 1e-9) & (np.abs(z) < 2 - 1e-9)
+        want = I_BULB * 1.2 / (1.2 ** 2 + (x - 0.3) ** 2 + (z + 0.4) ** 2) ** 1.5
+        got = tx.values[k, 0]
+        assert np.allclose(got[on], want[on], rtol=1e-3), np.abs(got[on] / want[on] - 1).max()
+        q = ch.corners2d[c]
+        across += sum(not inside_2d(np.array([ii + 0.5, jj + 0.5]), q, 0) for ii, jj in
+                      zip(i.ravel()[on], j.ravel()[on]))
+    assert across >= 2 * 30, across     # texels across the diagonal, on both maps

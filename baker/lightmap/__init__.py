@@ -11,8 +11,8 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import (INSET, contrast_texels, fill, inside_geometry, interpolate_corners, sub_texel_points,
-                     texel_points)
+from .texels import (INSET, contrast_texels, fill, inside_geometry, interpolate_corners, onto_coplanar,
+                     sub_texel_points, texel_points)
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
 
@@ -62,11 +62,14 @@ def layout_for(scene, texel_size, uv="per-triangle"):
     return charts_for(scene, texel_size)
 
 
-def sample_points(layout, corners, inset=0.0):
+def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0):
     """(map_offsets, map_size, point, covered, texel_tri, texel_back, owner,
     corners2d): points clamped onto an edge move `inset` texels inward
     (texels.inset); texel k's triangle side has its corners at
-    corners2d[owner[k]] (3, 2) in its map's texel units."""
+    corners2d[owner[k]] (3, 2) in its map's texel units. With the scene's
+    bvh, a per-triangle texel whose centre lies on the surface beyond its
+    triangle's edge samples the centre (texels.onto_coplanar: no seams
+    along the edges between coplanar triangles)."""
     if isinstance(layout, XatlasLayout):
         point, covered, tri, back, face = xatlas_texels(layout, corners, inset)
         size = np.full(layout.n_pages, PAGE, np.int64)
@@ -75,6 +78,9 @@ def sample_points(layout, corners, inset=0.0):
     off = layout.offsets
     size = layout.size.astype(np.int64)
     point, covered = texel_points(corners, layout.tri, layout.corners2d, layout.size, off, float(inset))
+    if bvh is not None:
+        onto_coplanar(bvh.arrays, corners, layout.tri, layout.back, layout.axis, layout.origin, layout.texel,
+                      layout.size, off, point, covered, float(lift))
     per = np.repeat(np.arange(len(layout), dtype=np.int32), size ** 2)
     return off, size, point, covered, layout.tri[per].astype(np.int32), layout.back[per], per, layout.corners2d
 
@@ -84,9 +90,9 @@ def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
     vox = solution.voxels
     h = float(vox.cell_size)
     corners = surfaces.arrays.corners
-    off, size, point, covered, ttri, tback, owner, _ = sample_points(layout, corners)
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
+    off, size, point, covered, ttri, tback, owner, _ = sample_points(layout, corners, 0.0, bvh, lift)
     small, cpts = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
@@ -135,9 +141,9 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     from ..startup import checkpoint
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
-    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET)
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
+    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift)
     small, cpts = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     # the inside test is per texel point; a sub-texel triangle's texels have no points of their own

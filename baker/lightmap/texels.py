@@ -345,3 +345,51 @@ def interpolate_corners(corners, tri, first, size, at_corners, point, corner_in,
             for ch in range(3):
                 values[k, ch] = max(0.0, w[0] * at_corners[c, 0, ch] + w[1] * at_corners[c, 1, ch]
                                     + w[2] * at_corners[c, 2, ch])
+
+
+COPLANAR_COS = 0.9999   # a neighbour this parallel (same winding) whose plane the texel's centre lies on continues the surface
+
+
+@njit(cache=True, parallel=True)
+def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size, offsets, point, covered, lift):
+    """Moves, in place, the sample point of each covered texel whose centre
+    lies outside its triangle onto the centre itself (on the triangle's
+    plane) where the surface continues there: the first surface a ray down
+    the side's normal from the centre lifted `lift` meets, at the plane, is
+    a triangle wound the same way in the same plane (the other half of a
+    quad, the next tile of a floor). A texel across a shared edge then
+    holds the light at its own centre, as its neighbour across the edge
+    does, and bilinear filtering shows no seam along the edge. Where the
+    surface ends (a box's edge, a wall meeting the floor) the point stays
+    clamped and inset (texel_points)."""
+    for c in prange(chart_tri.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        t = chart_tri[c]
+        wx, wy, wz = side_normal(corners, t, False)          # the winding normal
+        sg = -1.0 if chart_back[c] else 1.0
+        nx, ny, nz = sg * wx, sg * wy, sg * wz               # the side's
+        d = wx * corners[t, 0, 0] + wy * corners[t, 0, 1] + wz * corners[t, 0, 2]
+        a = axis[c]
+        ua = 1 if a == 0 else 0
+        va = 1 if a == 2 else 2
+        wn = (wx, wy, wz)
+        s = size[c]
+        for j in range(s):
+            for i in range(s):
+                k = offsets[c] + j * s + i
+                if not covered[k]:
+                    continue
+                p = np.empty(3)
+                p[ua] = (origin[c, 0] + i + 0.5) * texel[c]
+                p[va] = (origin[c, 1] + j + 0.5) * texel[c]
+                p[a] = (d - wn[ua] * p[ua] - wn[va] * p[va]) / wn[a]
+                moved = (p[0] - point[k, 0]) ** 2 + (p[1] - point[k, 1]) ** 2 + (p[2] - point[k, 2]) ** 2
+                if moved <= (1e-3 * texel[c]) ** 2:
+                    continue                                  # inside its triangle: already at its centre
+                tt, h, u, v = closest_hit(bvh, stack, p[0] + lift * nx, p[1] + lift * ny, p[2] + lift * nz,
+                                          -nx, -ny, -nz, 0.0, 2.0 * lift)
+                if h < 0 or abs(tt - lift) > 0.05 * lift:          # float32 triangles: t is good to ~1e-7 of the scene
+                    continue
+                hx, hy, hz = hit_normal(bvh, h)
+                if hx * wx + hy * wy + hz * wz > COPLANAR_COS:
+                    point[k, 0], point[k, 1], point[k, 2] = p[0], p[1], p[2]
