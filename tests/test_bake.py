@@ -484,9 +484,9 @@ def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
     light: each triangle is shaded at its three corner points only (3
     points a triangle, not a point a texel), and its texels, interpolated
     linearly from them, follow the light I H / (H^2 + r^2)^(3/2) within
-    0.3% (the linear interpolation's error over a triangle this small is
-    below 0.1%; a wrong weight would be off by the light's variation over a
-    triangle, ~5%)."""
+    0.3% on their triangle (the linear interpolation's error over a
+    triangle this small is below 0.1%; a wrong weight would be off by the
+    light's variation over a triangle, ~1.5%) and within 1% beyond it."""
     from baker.stats import Stats
     from scenes.generate import GltfBuilder, quad
     b = GltfBuilder()
@@ -504,7 +504,17 @@ def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
     p = tx.point[k]
     want = I_BULB * 1.0 / (1.0 + (p[:, 0] - 0.2) ** 2 + (p[:, 2] - 0.1) ** 2) ** 1.5
     err = np.abs(tx.values[k, 0] / want - 1)
-    assert err.max() < 3e-3, err.max()
+    # texels whose centre lies beyond their triangle, on the next one, sample that centre (onto_coplanar): the
+    # linear function extrapolated up to 1.5 texels past a triangle one texel wide
+    c = scene.triangle_corners()[tx.texel_tri[k]]
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    own = np.ones(len(p), bool)
+    for a in range(3):
+        e = np.cross(c[:, (a + 1) % 3] - c[:, a], p - c[:, a])
+        own &= (e * n).sum(axis=1) >= -1e-12
+    assert own.sum() > 0.2 * len(p)
+    assert err[own].max() < 3e-3, err[own].max()
+    assert err.max() < 1e-2, err.max()
     assert err.mean() > 1e-6    # interpolated, not the light at each point
 
 
