@@ -38,6 +38,8 @@ from ..kernels.sampling import frame
 from ..kernels.traverse import any_hit, closest_hit, hit_normal
 
 COVER = 1.5           # texels: centres this near the triangle are sampled
+OUTSIDE = 1e-6        # texels: a centre farther than this from its triangle lies outside it (inside, the nearest
+#                       point is the centre itself up to rounding, ~1e-15)
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
 INSET = 0.5           # texels: a point clamped onto an edge moves this far inward
 FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
@@ -128,7 +130,7 @@ def texel_points(corners, chart_tri, corners2d, size, offsets, amount=0.0):
                 dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
                 k = offsets[c] + j * s + i
                 covered[k] = dx * dx + dy * dy <= COVER * COVER
-                wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > 0.0, q, amount)
+                wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > OUTSIDE * OUTSIDE, q, amount)
                 for a in range(3):
                     point[k, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
     return point, covered
@@ -277,7 +279,7 @@ def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texe
             wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
             dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
             dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
-            wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > 0.0, q, amount)
+            wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > OUTSIDE * OUTSIDE, q, amount)
             r = e * n_sub + sub
             for a in range(3):
                 pts[r, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from .atlas import PAGE
-from .texels import COVER, closest_on_triangle, inset
+from .texels import COVER, OUTSIDE, closest_on_triangle, inset
 
 PADDING = 2
 
@@ -104,7 +104,7 @@ def _rasterize(uv, page, n_pages, size, amount):
                 if d <= COVER * COVER and d < best[k]:
                     best[k] = d
                     face[k] = f
-                    bary[k, 0], bary[k, 1], bary[k, 2] = inset(wa, wb, wc, d > 0.0, q, amount)
+                    bary[k, 0], bary[k, 1], bary[k, 2] = inset(wa, wb, wc, d > OUTSIDE * OUTSIDE, q, amount)
     return face, bary
 
 
