@@ -550,37 +550,3 @@ def test_texels_across_a_shared_edge_sample_their_own_centre(make_scene):
         across += sum(not inside_2d(np.array([ii + 0.5, jj + 0.5]), q, 0) for ii, jj in
                       zip(i.ravel()[on], j.ravel()[on]))
     assert across >= 2 * 30, across     # texels across the diagonal, on both maps
-
-
-def test_small_triangles_a_shadow_edge_crosses_are_shaded_per_texel(make_scene):
-    """The floor of one-texel triangles under the point light, with the
-    blocker's straight shadow edge across it: a triangle whose corner
-    points differ by more than half (the edge crosses it) is shaded texel
-    by texel, each texel exactly the light at its point (0 or the bulb's),
-    so the edge is as sharp as the texels and not a saw-tooth of linear
-    ramps; the others keep their three corner points."""
-    from baker.lightmap import CORNER_IN
-    from baker.stats import Stats
-    from scenes.generate import GltfBuilder, quad
-    b = GltfBuilder()
-    black = b.material("black", (0.0,) * 3)
-    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0), subdiv=64), black)
-    xe = 0.345   # mid-way between the floor's grid lines (0.0625 apart)
-    b.mesh("blocker", *quad((xe, 1, -2.5), (2.5, 1, -2.5), (2.5, 1, 2.5), (xe, 1, 2.5), facing=(0, -1, 0)), black)
-    b.light("bulb", "point", intensity=I_BULB, position=(xe, H_BULB, 0))
-    scene = make_scene(b, "bake_fine_floor_edge")
-    st = Stats("bake")
-    _, _, tx, _ = bake_scene(scene, bake_config("default", texel_density=16, resolution=16, photons=20_000,
-                                                texel_samples=1), st)
-    ch = tx.layout
-    floor = ch.tri < 2 * 64 * 64
-    c = scene.triangle_corners()[ch.tri]
-    pts = c + CORNER_IN * (c.mean(axis=1, keepdims=True) - c)
-    crossed = floor & ((pts[:, :, 0] < xe).any(axis=1) & (pts[:, :, 0] > xe).any(axis=1))
-    assert crossed.sum() >= 64 and st.counters["subtexel_sharp"] == crossed.sum()
-    per = np.repeat(np.arange(len(ch)), ch.size.astype(np.int64) ** 2)
-    k = tx.covered & crossed[per]
-    x, z = tx.point[k, 0], tx.point[k, 2]
-    want = I_BULB * H_BULB / (H_BULB ** 2 + (x - xe) ** 2 + z ** 2) ** 1.5 * (x < xe)
-    assert np.allclose(tx.values[k, 0], want, rtol=1e-9, atol=1e-12)
-    assert (want == 0).sum() > 100 and (want > 0).sum() > 100

@@ -20,7 +20,6 @@ LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 LUM = np.array([0.2126, 0.7152, 0.0722])
-CORNER_CONTRAST = 0.5  # a small triangle whose corner points differ by more than this share is shaded per texel
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
 
 
@@ -134,9 +133,7 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
     Sub-texel triangles are shaded at their three corner points and
-    interpolated over their maps (corner_points), unless those differ by
-    more than CORNER_CONTRAST (a shadow's edge crosses the triangle): those
-    are shaded texel by texel as larger ones. Then anti-aliasing:
+    interpolated over their maps (corner_points). Then anti-aliasing:
     texels that differ from a neighbour by more than `contrast` (a shadow's
     edge, a contact) take the mean of a samples x samples grid of points
     over their square instead (samples 1: off; texels.sub_texel_points)."""
@@ -147,6 +144,11 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     texel = float(np.min(layout.texel)) if isinstance(layout, Charts) else layout.texel
     lift = LIFT * min(h, texel)
     off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift)
+    small, cpts = corner_points(layout, corners)
+    by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
+    # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
+    inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
+                             tback, point, covered & ~by_corners, lift, np.inf, seed)
     normals = side_normals(corners, ttri, tback)
     found = covered & (ttri >= 0)
     values = np.zeros((len(point), 3))
@@ -164,24 +166,10 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
                 progress(int(ok[b].sum()))
         return out
 
-    small, cpts = corner_points(layout, corners)
-    sharp = 0
     if len(small):
         cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
-        cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool)).reshape(-1, 3, 3)
-        # a shadow's edge across the triangle (its corners differ by more than CORNER_CONTRAST): linear is a
-        # saw-tooth there, so it is shaded texel by texel as larger triangles are
-        lum = cv @ LUM
-        edge = lum.max(axis=1) - lum.min(axis=1) > CORNER_CONTRAST * lum.max(axis=1)
-        sharp = int(edge.sum())
-        small, cv = small[~edge], cv[~edge]
-        corner_values(layout, corners, small, cv, point, off, values)
-    chart_by_corners = np.zeros(len(layout), bool) if isinstance(layout, Charts) else np.zeros(0, bool)
-    chart_by_corners[small] = True
-    by_corners = chart_by_corners[owner] if len(small) else np.zeros(len(point), bool)
-    # the inside test is per texel point; a corner-shaded triangle's texels have no points of their own
-    inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
-                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+        cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
+        corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
     todo = np.nonzero(found & ~by_corners)[0]
     values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
     aa = np.zeros(0, np.int64)
@@ -203,7 +191,7 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
     stats = {"cut_mean": float(cuts.mean()) if len(cuts) else 0.0, "cut_max": int(cuts.max(initial=0)),
              "shadow_rays": rays[0], "points_shaded": int(len(cuts)), "texels_shaded": int(len(todo)),
-             "subtexel_triangles": int(len(small)), "subtexel_sharp": sharp, "texels_antialiased": int(len(aa)),
+             "subtexel_triangles": int(len(small)), "texels_antialiased": int(len(aa)),
              "texel_samples": int(samples)}
     return ts, stats
 
