@@ -278,7 +278,7 @@ def bake_summary(stats, bake) -> str:
             ("texels", f"{c.get('texels', 0):,} in {c.get('charts', 0):,} maps ({c.get('texels_covered', 0):,} "
                        f"sampled, {c.get('texels_inside', 0):,} inside geometry)"),
             ("points shaded", f"{c['points_shaded']:,} ({c['texels_shaded']:,} texels; {c['subtexel_triangles']:,} "
-                              f"sub-texel triangle sides at their corners; {c['texels_antialiased']:,} edge texels "
+                              f"small-triangle sides at their corners; {c['texels_antialiased']:,} edge texels "
                               f"at {c['texel_samples']}x{c['texel_samples']})" if "points_shaded" in c else
              "- (preview)"),
             ("maps stored", f"{c.get('unique', 0):,} ({c.get('constant', 0):,} single-colour, dedup ratio "
