@@ -432,8 +432,9 @@ def test_texels_across_a_shadow_edge_take_the_mean_over_their_square(make_scene,
     fraction of lit points, not 0 or all of it); texels more than a texel
     and a half from the edge, where the light varies smoothly (< 7% per
     texel), keep their own point's value. Only floor texels whose square
-    lies inside their triangle are checked (the others are clamped onto
-    the triangle's edge)."""
+    lies inside their triangle and whose centre lies more than a texel
+    from its edges are checked (the others are clamped onto the triangle's
+    edge, or on its edge band: test_edge_band_texels_...)."""
     from baker.lightmap.texels import NUDGE
     scene = shadow_edge_scene(make_scene)
     _, _, tx, _ = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
@@ -448,8 +449,7 @@ def test_texels_across_a_shadow_edge_take_the_mean_over_their_square(make_scene,
         for j in range(s):
             for i in range(s):
                 k = tx.map_offsets[c] + j * s + i
-                sq = np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float)
-                if not all(inside_2d(p, q, 1e-3) for p in sq):
+                if not all(inside_2d(p, q, 1e-3) for p in square(i, j, 1.0)):
                     continue
                 x0 = (o[0] + i) * t                       # the texel's square spans x0 .. x0 + t
                 if x0 < XE < x0 + t:
@@ -470,6 +470,55 @@ def test_texels_across_a_shadow_edge_take_the_mean_over_their_square(make_scene,
                     checked["far"] += 1
     assert checked["edge"] >= 20 and checked["far"] >= 400, checked
     assert (checked["fraction"] > 0) == (samples > 1), checked
+
+
+def square(i, j, grow=0.0):
+    """Texel (i, j)'s square grown by `grow` texels on each side (corners)."""
+    return np.array([[i - grow, j - grow], [i + 1 + grow, j - grow], [i + 1 + grow, j + 1 + grow],
+                     [i - grow, j + 1 + grow]], float)
+
+
+def test_anti_aliasing_points_beyond_a_shared_edge_lie_on_the_next_triangle(make_scene):
+    """A texel's grid points whose sub-square centre lies beyond its
+    triangle on the coplanar one that continues the surface (the floor
+    quad's diagonal) are that centre itself, not clamped onto the shared
+    edge: a texel across the diagonal is the mean of the light over its
+    whole square, as one beside it. Checked exactly under the point light
+    of shadow_edge_scene, every texel anti-aliased (contrast 0), on the
+    floor texels whose square crosses their triangle's diagonal and lies
+    within the floor, away from the shadow's edge. Clamping the points onto
+    the diagonal would move them by up to a texel along the light's
+    gradient (0.1-6% a texel)."""
+    from baker.lightmap.texels import NUDGE
+    scene = shadow_edge_scene(make_scene)
+    side = 4
+    _, _, tx, _ = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+                                                texel_samples=side, texel_contrast=0.0))
+    ch = tx.layout
+    floor_tris = np.nonzero(scene.material_ids >= 0)[0][:2]
+    checked = 0
+    g = (np.arange(side) + 0.5) / side
+    for c in np.nonzero(np.isin(ch.tri, floor_tris) & ~ch.back)[0]:
+        s, t, o, q = int(ch.size[c]), float(ch.texel[c]), ch.origin[c], ch.corners2d[c]
+        cen3 = scene.triangle_corners()[ch.tri[c]].mean(axis=0)
+        for j in range(s):
+            for i in range(s):
+                k = tx.map_offsets[c] + j * s + i
+                x0, z0 = (o[0] + i) * t, (o[1] + j) * t
+                inside = [inside_2d(p, q, 1e-9) for p in square(i, j)]
+                if all(inside) or not any(inside) or not (-2 < x0 and x0 + t < 2 and -2 < z0 and z0 + t < 2):
+                    continue
+                if not (x0 > XE + 1.5 * t or x0 + t < XE - 1.5 * t) or tx.values[k, 0] == 0:
+                    continue
+                us, vs = np.meshgrid(i + g, j + g)
+                sub = np.stack([us.ravel(), vs.ravel()], axis=1)
+                ps = np.stack([(o[0] + sub[:, 0]) * t, np.zeros(len(sub)), (o[1] + sub[:, 1]) * t], axis=1)
+                own = np.array([inside_2d(p, q, 0.0) for p in sub])
+                ps[own] += NUDGE * (cen3 - ps[own])  # points on the texel's own triangle get the hair inward
+                want = bulb(ps[:, 0], ps[:, 2]).mean()
+                assert tx.values[k, 0] == pytest.approx(want, rel=1e-9), (i, j)
+                checked += 1
+    assert checked >= 40, checked
 
 
 def inside_2d(p, q, tol):

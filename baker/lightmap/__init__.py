@@ -136,7 +136,9 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     interpolated over their maps (corner_points). Then anti-aliasing:
     texels that differ from a neighbour by more than `contrast` (a shadow's
     edge, a contact) take the mean of a samples x samples grid of points
-    over their square instead (samples 1: off; texels.sub_texel_points)."""
+    over their square instead (samples 1: off; texels.sub_texel_points;
+    grid points beyond the triangle on a coplanar one that continues the
+    surface are taken there, not clamped onto the shared edge)."""
     from ..lights import irradiance
     from ..startup import checkpoint
     h = float(solution.voxels.cell_size)
@@ -179,8 +181,12 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
         aa = np.nonzero(contrast_texels(values @ LUM, valid, point, off, size, reach, float(contrast)))[0]
         if len(aa):
             m = np.searchsorted(off, aa, side="right") - 1
+            per = isinstance(layout, Charts)
             pts, ok = sub_texel_points(bvh.arrays, corners, aa, owner, q_all, off[m], size[m], ttri, tback, point,
-                                       int(samples), float(INSET), lift)
+                                       int(samples), float(INSET), lift,
+                                       layout.axis if per else np.zeros(1, np.int8),
+                                       layout.origin if per else np.zeros((1, 2)),
+                                       layout.texel if per else np.zeros(1), per)
             n_sub = samples * samples
             sub = shade(pts, np.repeat(normals[aa], n_sub, axis=0), ok)
             n_ok = ok.reshape(-1, n_sub).sum(axis=1)

@@ -247,11 +247,15 @@ def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
 
 @njit(cache=True, parallel=True)
 def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texel_tri, texel_back, point, side,
-                     amount, lift):
+                     amount, lift, chart_axis, chart_origin, chart_texel, coplanar):
     """Anti-aliasing points of the texels `texels` (m,): a side x side grid
     of sub-texel centres over each texel's square, each taken to the point
     of the texel's triangle nearest to it (moved inward as the texel's own
-    point, `inset`). owner (N,) indexes q_all (n, 3, 2): the triangle's
+    point, `inset`), or, with `coplanar` (per-triangle charts: owner[k]'s
+    axis, origin and texel size in chart_axis, chart_origin, chart_texel),
+    to the sub-centre itself where it lies beyond the triangle on a
+    coplanar one that continues the surface (continues_at: as the
+    texel's own point, onto_coplanar). owner (N,) indexes q_all (n, 3, 2): the triangle's
     corners in its map's texel units; map_off (m,) and map_size (m,): the
     first texel and the side of each texel's map. Returns points
     (m * side^2, 3) and ok (m * side^2,) bool: False where the segment from
@@ -279,10 +283,19 @@ def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texe
             wa, wb, wc = closest_on_triangle(px, py, q[0, 0], q[0, 1], q[1, 0], q[1, 1], q[2, 0], q[2, 1])
             dx = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0] - px
             dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
-            wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > OUTSIDE * OUTSIDE, q, amount)
+            outside = dx * dx + dy * dy > OUTSIDE * OUTSIDE
             r = e * n_sub + sub
-            for a in range(3):
-                pts[r, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
+            found = False
+            if outside and coplanar:
+                c = owner[k]
+                cx, cy, cz = plane_point(corners, t, chart_axis[c], chart_origin[c], chart_texel[c], px, py)
+                found = continues_at(bvh, stack, corners, t, texel_back[k], cx, cy, cz, lift)
+                if found:
+                    pts[r, 0], pts[r, 1], pts[r, 2] = cx, cy, cz
+            if not found:
+                wa, wb, wc = inset(wa, wb, wc, outside, q, amount)
+                for a in range(3):
+                    pts[r, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
             ex, ey, ez = pts[r, 0] + lift * nx - ox, pts[r, 1] + lift * ny - oy, pts[r, 2] + lift * nz - oz
             d = math.sqrt(ex * ex + ey * ey + ez * ez)
             ok[r] = d <= 0.0 or not any_hit(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d)
@@ -352,46 +365,59 @@ def interpolate_corners(corners, tri, first, size, at_corners, point, corner_in,
 COPLANAR_COS = 0.9999   # a neighbour this parallel (same winding) whose plane the texel's centre lies on continues the surface
 
 
+@njit(cache=True)
+def plane_point(corners, t, a, origin, texel, x, y):
+    """The point at (x, y), in the texel units of triangle t's chart
+    (dominant axis a, origin (2,), texel size), on the triangle's plane."""
+    wx, wy, wz = side_normal(corners, t, False)
+    d = wx * corners[t, 0, 0] + wy * corners[t, 0, 1] + wz * corners[t, 0, 2]
+    ua = 1 if a == 0 else 0
+    va = 1 if a == 2 else 2
+    wn = (wx, wy, wz)
+    p = np.empty(3)
+    p[ua] = (origin[0] + x) * texel
+    p[va] = (origin[1] + y) * texel
+    p[a] = (d - wn[ua] * p[ua] - wn[va] * p[va]) / wn[a]
+    return p[0], p[1], p[2]
+
+
+@njit(cache=True)
+def continues_at(bvh, stack, corners, t, back, px, py, pz, lift):
+    """True where the surface of triangle t continues at p (on its plane):
+    the first surface a ray down the side's normal from p lifted `lift`
+    meets, at the plane, is a triangle wound the same way in the same plane
+    (the other half of a quad, the next tile of a floor)."""
+    wx, wy, wz = side_normal(corners, t, False)          # the winding normal
+    sg = -1.0 if back else 1.0
+    nx, ny, nz = sg * wx, sg * wy, sg * wz               # the side's
+    tt, h, u, v = closest_hit(bvh, stack, px + lift * nx, py + lift * ny, pz + lift * nz, -nx, -ny, -nz, 0.0,
+                              2.0 * lift)
+    if h < 0 or abs(tt - lift) > 0.05 * lift:          # float32 triangles: t is good to ~1e-7 of the scene
+        return False
+    hx, hy, hz = hit_normal(bvh, h)
+    return hx * wx + hy * wy + hz * wz > COPLANAR_COS
+
+
 @njit(cache=True, parallel=True)
 def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size, offsets, point, covered, lift):
     """Moves, in place, the sample point of each covered texel whose centre
     lies outside its triangle onto the centre itself (on the triangle's
-    plane) where the surface continues there: the first surface a ray down
-    the side's normal from the centre lifted `lift` meets, at the plane, is
-    a triangle wound the same way in the same plane (the other half of a
-    quad, the next tile of a floor). A texel across a shared edge then
-    holds the light at its own centre, as its neighbour across the edge
-    does, and bilinear filtering shows no seam along the edge. Where the
-    surface ends (a box's edge, a wall meeting the floor) the point stays
-    clamped and inset (texel_points)."""
+    plane) where the surface continues there (continues_at). A texel
+    across a shared edge then holds the light at its own centre, as its
+    neighbour across the edge does, and bilinear filtering shows no seam
+    along the edge. Where the surface ends (a box's edge, a wall meeting
+    the floor) the point stays clamped and inset (texel_points)."""
     for c in prange(chart_tri.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        t = chart_tri[c]
-        wx, wy, wz = side_normal(corners, t, False)          # the winding normal
-        sg = -1.0 if chart_back[c] else 1.0
-        nx, ny, nz = sg * wx, sg * wy, sg * wz               # the side's
-        d = wx * corners[t, 0, 0] + wy * corners[t, 0, 1] + wz * corners[t, 0, 2]
-        a = axis[c]
-        ua = 1 if a == 0 else 0
-        va = 1 if a == 2 else 2
-        wn = (wx, wy, wz)
         s = size[c]
         for j in range(s):
             for i in range(s):
                 k = offsets[c] + j * s + i
                 if not covered[k]:
                     continue
-                p = np.empty(3)
-                p[ua] = (origin[c, 0] + i + 0.5) * texel[c]
-                p[va] = (origin[c, 1] + j + 0.5) * texel[c]
-                p[a] = (d - wn[ua] * p[ua] - wn[va] * p[va]) / wn[a]
-                moved = (p[0] - point[k, 0]) ** 2 + (p[1] - point[k, 1]) ** 2 + (p[2] - point[k, 2]) ** 2
+                px, py, pz = plane_point(corners, chart_tri[c], axis[c], origin[c], texel[c], i + 0.5, j + 0.5)
+                moved = (px - point[k, 0]) ** 2 + (py - point[k, 1]) ** 2 + (pz - point[k, 2]) ** 2
                 if moved <= (1e-3 * texel[c]) ** 2:
                     continue                                  # inside its triangle: already at its centre
-                tt, h, u, v = closest_hit(bvh, stack, p[0] + lift * nx, p[1] + lift * ny, p[2] + lift * nz,
-                                          -nx, -ny, -nz, 0.0, 2.0 * lift)
-                if h < 0 or abs(tt - lift) > 0.05 * lift:          # float32 triangles: t is good to ~1e-7 of the scene
-                    continue
-                hx, hy, hz = hit_normal(bvh, h)
-                if hx * wx + hy * wy + hz * wz > COPLANAR_COS:
-                    point[k, 0], point[k, 1], point[k, 2] = p[0], p[1], p[2]
+                if continues_at(bvh, stack, corners, chart_tri[c], chart_back[c], px, py, pz, lift):
+                    point[k, 0], point[k, 1], point[k, 2] = px, py, pz
