@@ -57,6 +57,47 @@ def test_tree_invariants(n, n_dir, seed):
             assert t.right[node] > node + 1 or t.right[node] == node + 2
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.integers(2, 200), st.floats(0.02, 2.0), st.integers(0, 2 ** 31))
+def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
+    """A node's bound at a point p (normal n) is at least what its VPLs
+    give p without visibility, sum of lum x cos_l cos_p / (pi r^2 + A)
+    over its leaves; at most the bound without cosines, lum / (pi d^2);
+    and the cosines do prune: with the VPLs' normals spread `spread`
+    around one axis, some nodes are bounded well below lum / (pi d^2)
+    (p beside or behind their cone, or their box below p's plane)."""
+    from baker.lights.lightcuts import COS_MIN, node_bound
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    nor = axis / np.linalg.norm(axis) + spread * rng.normal(size=(n, 3))
+    nor /= np.linalg.norm(nor, axis=1)[:, None]
+    v = VPLs(np.zeros(n, np.int8), rng.uniform(-1, 1, (n, 3)), nor, rng.uniform(0, 2, (n, 3)) ** 3,
+             rng.uniform(0, 0.01, n), np.zeros(n, bool))
+    t = build_tree(v, seed)
+    lum = v.power @ LUM
+    pruned = 0
+    for _ in range(8):
+        p = rng.uniform(-1.5, 1.5, 3)
+        pn = rng.normal(size=3)
+        pn /= np.linalg.norm(pn)
+        d = v.position - p
+        r2 = (d * d).sum(axis=1)
+        u = d / np.sqrt(r2)[:, None]
+        cp, cl = u @ pn, -(u * v.normal).sum(axis=1)
+        g = np.where((cp > COS_MIN) & (cl > COS_MIN), cl * cp / (np.pi * r2 + v.area), 0.0)
+        for node in range(len(t)):
+            if t.right[node] < 0:
+                continue
+            b = node_bound(t.lo, t.hi, t.axis, t.cos, t.lum, t.kind, node, *p, *pn)
+            leaves = leaves_of(t, node)
+            assert b >= (lum[leaves] * g[leaves]).sum() * (1 - 1e-9), node
+            d2 = (np.maximum(0, np.maximum(t.lo[node] - p, p - t.hi[node])) ** 2).sum()
+            loose = t.lum[node] / (np.pi * d2) if d2 > 0 else np.inf
+            assert b <= loose * (1 + 1e-9), node
+            pruned += b < 0.5 * loose
+    assert pruned > 0
+
+
 def test_tree_is_the_same_for_any_thread_count_and_matches_a_plain_build():
     """The subtrees under the top levels are built in parallel: the tree is
     the same for any thread count, and the same as one built node by node

@@ -87,36 +87,46 @@ def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node,
         d2 += e * e
     if d2 <= 0.0:
         return np.inf
-    # cos_p: the box in p's frame (t, b, n); z the height above p's plane
-    zmax = -np.inf
-    for k in range(8):
-        cx = tree_hi[node, 0] if k & 1 else tree_lo[node, 0]
-        cy = tree_hi[node, 1] if k & 2 else tree_lo[node, 1]
-        cz = tree_hi[node, 2] if k & 4 else tree_lo[node, 2]
-        zmax = max(zmax, (cx - px) * nx + (cy - py) * ny + (cz - pz) * nz)
+    # cos_p: the largest height of the box above p's plane (per axis, from the face the normal points to) over
+    # the distance to the box
+    zmax = 0.0
+    for c in range(3):
+        q = (px, py, pz)[c]
+        nc = (nx, ny, nz)[c]
+        zmax += nc * ((tree_hi[node, c] if nc > 0.0 else tree_lo[node, c]) - q)
     if zmax <= 0.0:
         return 0.0
     cos_p = min(1.0, zmax / math.sqrt(d2)) if zmax * zmax < d2 else 1.0
-    # cos_l: the light cone against the directions from the box to p
+    # cos_l: the light cone against the directions from the box to p, cos(max(0, w - r - c)): w the angle between
+    # the cone's axis and the direction from the box's centre to p, r the half angle the box's bounding sphere
+    # subtends, c the cone's half angle; by the angle sum rules (no inverse trigonometry)
     cos_l = 1.0
-    c = tree_cos[node]
-    if c > -1.0:
+    cc = tree_cos[node]
+    if cc > -1.0:
         mx = 0.5 * (tree_lo[node, 0] + tree_hi[node, 0])
         my = 0.5 * (tree_lo[node, 1] + tree_hi[node, 1])
         mz = 0.5 * (tree_lo[node, 2] + tree_hi[node, 2])
         wx, wy, wz = px - mx, py - my, pz - mz
-        dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+        dist2 = wx * wx + wy * wy + wz * wz
         hx = 0.5 * (tree_hi[node, 0] - tree_lo[node, 0])
         hy = 0.5 * (tree_hi[node, 1] - tree_lo[node, 1])
         hz = 0.5 * (tree_hi[node, 2] - tree_lo[node, 2])
-        rad = math.sqrt(hx * hx + hy * hy + hz * hz)
-        if dist > rad:
-            dot = (wx * tree_axis[node, 0] + wy * tree_axis[node, 1] + wz * tree_axis[node, 2]) / dist
-            ang = math.acos(min(1.0, max(-1.0, dot))) - math.asin(rad / dist) - math.acos(min(1.0, max(-1.0, c)))
-            if ang >= 0.5 * math.pi:
-                return 0.0
-            if ang > 0.0:
-                cos_l = math.cos(ang)
+        rad2 = hx * hx + hy * hy + hz * hz
+        if dist2 > rad2:
+            dist = math.sqrt(dist2)
+            cw = min(1.0, max(-1.0, (wx * tree_axis[node, 0] + wy * tree_axis[node, 1] + wz * tree_axis[node, 2])
+                              / dist))
+            sw = math.sqrt(max(0.0, 1.0 - cw * cw))
+            sr = math.sqrt(rad2 / dist2)
+            cr = math.sqrt(max(0.0, 1.0 - sr * sr))
+            cc = min(1.0, cc)
+            sc = math.sqrt(max(0.0, 1.0 - cc * cc))
+            cb = cr * cc - sr * sc          # cos and sin of b = r + c, which lies in [0, 3 pi / 2]
+            sb = sr * cc + cr * sc
+            if sb >= 0.0 and cw < cb:       # b <= pi and w > b: w - b in (0, pi]
+                cos_l = cw * cb + sw * sb   # cos(w - b); <= 0 from a right angle on: the cone faces away
+                if cos_l <= 0.0:
+                    return 0.0
     return lum * cos_l * cos_p / (math.pi * d2)
 
 
