@@ -277,7 +277,8 @@ def bake_summary(stats, bake) -> str:
              "- (preview: texel values from the voxel solution)"),
             ("texels", f"{c.get('texels', 0):,} in {c.get('charts', 0):,} maps ({c.get('texels_covered', 0):,} "
                        f"sampled, {c.get('texels_inside', 0):,} inside geometry)"),
-            ("points shaded", f"{c['points_shaded']:,} ({c['texels_shaded']:,} texels; {c['subtexel_triangles']:,} "
+            ("points shaded", f"{c['points_shaded']:,} ({c['texels_shaded']:,} texels, "
+                              f"{c.get('texels_interpolated', 0):,} interpolated; {c['subtexel_triangles']:,} "
                               f"small-triangle sides at their corners; {c['texels_antialiased']:,} edge texels "
                               f"at {c['texel_samples']}x{c['texel_samples']})" if "points_shaded" in c else
              "- (preview)"),
@@ -306,7 +307,7 @@ def cmd_bake(args):
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
                              preview_vpls=args.preview_vpls, texel_samples=args.texel_samples,
-                             resolution=args.resolution,
+                             texel_interpolate=args.texel_interpolate, resolution=args.resolution,
                              cell_size=args.cell_size, surface_cells=args.surface_cells,
                              photons_per_voxel=args.photons_per_voxel, photon_smoothing=args.photon_smoothing,
                              radius=args.radius, photons=args.photons,
@@ -402,7 +403,8 @@ def _solver_args(p):
     g.add_argument("--max-bounces", type=int, help="bounce cap")
     g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")
     g = p.add_argument_group("lightcuts (render --method lightcuts; bake --preset default/high)")
-    g.add_argument("--epsilon", type=float, help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01)")
+    g.add_argument("--epsilon", type=float, help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01; "
+                                                 "a bake's texels at default: 0.01)")
     g.add_argument("--direct-vpls", type=int, help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
 
 
@@ -495,6 +497,11 @@ def build_parser():
                    help="anti-aliasing of lightcuts texels: where the light changes sharply across a texel (a "
                         "shadow's edge, a contact) it takes the mean of an N x N grid of points (default: 2 for "
                         "default, 4 for high; 1: one point per texel)")
+    p.add_argument("--texel-interpolate", type=float, metavar="T",
+                   help="adaptive shading of lightcuts texels: every other texel of every other row is shaded, "
+                        "and a texel between shaded ones that agree within T (a share of the brightest) takes "
+                        "their mean; the others are shaded too (default: 0.1 for default, 0 for high: every "
+                        "texel shaded)")
     p.add_argument("--texels", choices=("voxels", "lightcuts"),
                    help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")

@@ -38,7 +38,7 @@ def main():
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     import baker
-    from baker.bake.pipeline import TEXEL_SAMPLES, bake_config
+    from baker.bake.pipeline import TEXEL_INTERPOLATE, TEXEL_SAMPLES, bake_config
     from baker.lights import lightcuts_config
     scene = baker.load_scene("cornell_box")
     texel_values(scene, bake_config("preview", texel_density=16))  # compile
@@ -52,20 +52,23 @@ def main():
     r = ref.values[keep] @ LUM
     m = r.mean()
     rows = []
-    runs = [("preview", None, 1)] + [(p, e, n) for p in ("default", "high") for e in (0.05, 0.02, 0.01)
-                                      for n in (1, TEXEL_SAMPLES[p])]
-    for preset, eps, n in runs:
+    d = TEXEL_INTERPOLATE["default"]
+    runs = ([("preview", None, 1, 0.0)] + [("default", e, n, t) for e in (0.05, 0.02, 0.01) for n, t in
+                                           ((1, 0.0), (TEXEL_SAMPLES["default"], 0.0), (TEXEL_SAMPLES["default"], d))]
+            + [("high", e, n, 0.0) for e in (0.02, 0.01) for n in (1, TEXEL_SAMPLES["high"])])
+    for preset, eps, n, interp in runs:
         tx, secs = texel_values(scene, bake_config(preset, texel_density=args.density, epsilon=eps,
-                                                   texel_samples=n))
+                                                   texel_samples=n, texel_interpolate=interp))
         if len(tx.values) != len(ref.values):
             raise SystemExit("texel layouts differ: cannot compare texel by texel")
         a = tx.values[keep] @ LUM
         e = math.sqrt(np.mean((a - r) ** 2)) / m
-        rows.append([preset, "voxels" if eps is None else f"lightcuts, eps {eps:g}", f"{n}x{n}", f"{secs:.2f}",
+        rows.append([preset, "voxels" if eps is None else f"lightcuts, eps {eps:g}", f"{n}x{n}", "-" if eps is None else
+                     "every texel" if interp == 0 else f"adaptive, {interp:g}", f"{secs:.2f}",
                      f"{100 * e:.2f}", f"{100 * np.percentile(np.abs(a - r) / m, 95):.1f}"])
     emit(args, f"Cornell box lightmap texels ({int(keep.sum()):,} texels at {args.density:g} per metre) against "
                f"a converged bake of ours ({t_ref:.0f} s)", rows,
-         ["preset", "texel values", "edge texels", "bake s", "rel. RMSE %", "95th pct |error| / mean %"])
+         ["preset", "texel values", "edge texels", "shading", "bake s", "rel. RMSE %", "95th pct |error| / mean %"])
 
 
 if __name__ == "__main__":

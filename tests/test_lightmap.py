@@ -187,3 +187,43 @@ def test_texel_points_inside_their_triangle_stay_at_their_centre():
         assert np.abs(got[inside] - want[inside]).max() < 1e-9, c
         checked += inside.sum()
     assert checked > 10_000
+
+
+def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
+    """One level of between_lattice on an 8 x 8 map whose even texels
+    (i, j both even) are known: a texel between two (same row or column)
+    or four (diagonal) known texels that agree within the contrast takes
+    their mean; one whose neighbours differ by more, or that misses one (off
+    the map, or not known), or lies beyond `reach`, is left for shading."""
+    from baker.lightmap.texels import between_lattice
+    s = 8
+    i, j = np.meshgrid(np.arange(s), np.arange(s))          # texel k = j * s + i
+    i, j = i.ravel(), j.ravel()
+    rng = np.random.default_rng(5)
+    lum = np.where((i % 2 == 0) & (j % 2 == 0), rng.uniform(1.0, 1.04, s * s), np.nan)
+    lum[(j == 4) & (i == 6)] = 2.0                           # a bright lattice texel: its neighbours differ
+    values = np.repeat(lum[:, None], 3, axis=1) * [1.0, 0.5, 0.25]
+    known = (i % 2 == 0) & (j % 2 == 0)
+    known[(j == 0) & (i == 0)] = False                       # not shaded (say, inside geometry)
+    target = ~((i % 2 == 0) & (j % 2 == 0))
+    point = np.stack([i * 0.1, j * 0.1, np.zeros(s * s)], axis=1)
+    point[(j == 7) & (i == 3)] = [5.0, 5.0, 5.0]             # far from its neighbours: another surface
+    v = values.copy()
+    got = between_lattice(v, np.nan_to_num(lum), known, target, point, np.array([0]), np.array([s]), 0.5, 0.1, 1)
+    want = np.zeros(s * s, bool)
+    for k in np.nonzero(target)[0]:
+        di, dj = i[k] % 2, j[k] % 2
+        nb = [(i[k] + a * di) + (j[k] + b * dj) * s for a in (-1, 1) for b in (-1, 1)]
+        if min(i[k] - di, j[k] - dj) < 0 or max(i[k] + di, j[k] + dj) >= s or not known[nb].all():
+            continue
+        if k == 7 * s + 3 or np.ptp(lum[nb]) > 0.1 * lum[nb].max():
+            continue
+        want[k] = True
+        assert np.allclose(v[k], values[nb].mean(axis=0), rtol=1e-12)
+    assert np.array_equal(got, want)
+    assert np.array_equal(v[~got], values[~got], equal_nan=True)       # the others untouched
+    assert 10 <= want.sum() < target.sum() - 10
+    # odd rows and columns at the map's far side (i or j = 7) have no neighbour beyond: never interpolated
+    assert not got[(i == s - 1) | (j == s - 1)].any()
+    # a bright texel's neighbours are shaded, not interpolated
+    assert not got[(j == 4) & (i == 5)].any() and not got[(j == 3) & (i == 5)].any()

@@ -15,6 +15,8 @@ from ..stats import Stats
 
 UV_MODES = ("per-triangle", "xatlas")
 TEXEL_SAMPLES = {"preview": 1, "default": 2, "high": 4}   # anti-aliasing grid side per preset (lightcuts texels)
+TEXEL_INTERPOLATE = {"default": 0.1}   # adaptive shading's agreement per preset (lightcuts texels; 0: every texel)
+TEXEL_EPSILON = {"default": 0.01}      # the texels' lightcuts epsilon where it differs from the preset's frames'
 MAX_TEXEL_SAMPLES = 8
 
 
@@ -29,7 +31,9 @@ class BakeConfig:
     sharply (a shadow's edge, a contact) take the mean of a texel_samples
     x texel_samples grid of points (1: one point per texel); texel_contrast:
     what is sharp, a difference from a neighbouring texel of more than this
-    share of the larger."""
+    share of the larger; texel_interpolate: adaptive shading, texels
+    between lattice texels that agree within this share of the largest
+    take their mean instead of being shaded (0: every texel shaded)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
@@ -38,6 +42,7 @@ class BakeConfig:
     preview_vpls: int = 65_536
     texel_samples: int = 1
     texel_contrast: float = AA_CONTRAST
+    texel_interpolate: float = 0.0
 
     def __post_init__(self):
         if not 1 <= self.texel_samples <= MAX_TEXEL_SAMPLES:
@@ -45,6 +50,8 @@ class BakeConfig:
                               f"(got {self.texel_samples})")
         if not 0 <= self.texel_contrast < 1:
             raise ConfigError(f"texel contrast must lie in [0, 1) (got {self.texel_contrast})")
+        if not 0 <= self.texel_interpolate < 1:
+            raise ConfigError(f"texel interpolation must lie in [0, 1) (got {self.texel_interpolate})")
         if self.uv not in UV_MODES:
             raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
         if self.texel_density is not None and not (np.isfinite(self.texel_density) and self.texel_density > 0):
@@ -54,22 +61,29 @@ class BakeConfig:
 
 def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
-                **solver_overrides) -> BakeConfig:
+                texel_interpolate=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings. texels: 'voxels' or 'lightcuts' (default:
     voxels for preview, lightcuts for default and high); texel_samples:
-    the anti-aliasing grid (default: the preset's, TEXEL_SAMPLES)."""
+    the anti-aliasing grid (default: the preset's, TEXEL_SAMPLES);
+    texel_interpolate: adaptive shading (default: the preset's,
+    TEXEL_INTERPOLATE); epsilon: the texels' lightcuts epsilon (default:
+    TEXEL_EPSILON, else the preset's)."""
     texels = texels or ("voxels" if preset == "preview" else "lightcuts")
     if texels not in ("voxels", "lightcuts"):
         raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
     solver = solver_config(preset, **solver_overrides)
+    if epsilon is None:
+        epsilon = TEXEL_EPSILON.get(preset)
     lc = lightcuts_config(preset, epsilon=epsilon, direct_vpls=direct_vpls, seed=solver.seed) \
         if texels == "lightcuts" else None
     if preview_vpls is None or preview_vpls < 0:
         raise ConfigError(f"the preview's VPL count must be >= 0 (got {preview_vpls})")
     if texel_samples is None:
         texel_samples = TEXEL_SAMPLES.get(preset, 1)
+    if texel_interpolate is None:
+        texel_interpolate = TEXEL_INTERPOLATE.get(preset, 0.0)
     return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls), int(texel_samples),
-                      AA_CONTRAST if texel_contrast is None else float(texel_contrast))
+                      AA_CONTRAST if texel_contrast is None else float(texel_contrast), float(texel_interpolate))
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
@@ -112,7 +126,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
         with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
             texels, st = lightcuts_texels(scene, solution, bvh, surfaces, charts, lights, lc.epsilon, lc.cap,
                                           config.solver.seed, b.update, config.texel_samples,
-                                          config.texel_contrast)
+                                          config.texel_contrast, config.texel_interpolate)
         shading.update(st, epsilon=lc.epsilon, cut_cap=lc.cap)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
@@ -126,6 +140,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
             "lightcuts over the VPLs", "solver": asdict(config.solver),
             "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
             "texel_samples": config.texel_samples if config.lightcuts else 1,
+            "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}

@@ -11,7 +11,7 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import (INSET, contrast_texels, fill, inside_geometry, interpolate_corners, onto_coplanar,
+from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners, onto_coplanar,
                      sub_texel_points, texel_points)
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
@@ -21,6 +21,7 @@ AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share 
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 LUM = np.array([0.2126, 0.7152, 0.0722])
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
+STRIDE = 2          # adaptive shading: texels on this lattice are shaded first (a power of two)
 
 
 @dataclass(frozen=True)
@@ -128,12 +129,21 @@ def side_normals(corners, texel_tri, texel_back):
 
 
 def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.02, cap=1000, seed=0,
-                     progress=None, samples=1, contrast=AA_CONTRAST) -> TexelSet:
+                     progress=None, samples=1, contrast=AA_CONTRAST, interpolate=0.0) -> TexelSet:
     """The default and high tiers: each texel's irradiance by lightcuts over
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
     Sub-texel triangles are shaded at their three corner points and
-    interpolated over their maps (corner_points). Then anti-aliasing:
+    interpolated over their maps (corner_points). Adaptive shading
+    (`interpolate` > 0): the texels on the even lattice (every STRIDE-th
+    row and column of a map) are shaded first; a texel between lattice
+    texels (two beside it in its row or column, or four diagonal ones)
+    that agree within `interpolate` of the largest takes their mean
+    (texels.between_lattice), the others are shaded (a shadow's edge, a
+    contact, a triangle's edge). Where the light is smooth this shades a
+    quarter of the texels, and the mean also averages out the cuts' own
+    error (the Cornell box's lightmap: 40% fewer points, 2.19% -> 2.15% of
+    converged at epsilon 2%). Then anti-aliasing:
     texels that differ from a neighbour by more than `contrast` (a shadow's
     edge, a contact) take the mean of a samples x samples grid of points
     over their square instead (samples 1: off; texels.sub_texel_points;
@@ -172,8 +182,30 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
         cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
         cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
         corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
-    todo = np.nonzero(found & ~by_corners)[0]
-    values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+    want = found & ~by_corners
+    between = np.zeros(len(point), bool)
+    if interpolate > 0:   # shade the even lattice, then each texel between agreeing lattice texels takes their mean
+        m_of = np.repeat(np.arange(len(size)), size * size)
+        q = np.arange(len(point)) - off[m_of]
+        qi, qj = q % size[m_of], q // size[m_of]
+        on = want & (qi % STRIDE == 0) & (qj % STRIDE == 0)
+        first = np.nonzero(on)[0]
+        values[first] = shade(point[first], normals[first], np.ones(len(first), bool))
+        step = STRIDE // 2
+        while step >= 1:
+            level = want & (qi % step == 0) & (qj % step == 0) & ~on
+            reach = np.inf if isinstance(layout, Charts) else 2.5 * step * texel  # xatlas: another chart
+            got = between_lattice(values, values @ LUM, on & ~inside, level & ~inside, point, off, size, reach,
+                                  float(interpolate), step)
+            rest = np.nonzero(level & ~got)[0]
+            values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool))
+            between |= got
+            on |= level
+            step //= 2
+    else:
+        todo = np.nonzero(want)[0]
+        values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+    todo = np.nonzero(want)[0]
     aa = np.zeros(0, np.int64)
     if samples > 1:
         valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
@@ -196,7 +228,8 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
     stats = {"cut_mean": float(cuts.mean()) if len(cuts) else 0.0, "cut_max": int(cuts.max(initial=0)),
-             "shadow_rays": rays[0], "points_shaded": int(len(cuts)), "texels_shaded": int(len(todo)),
+             "shadow_rays": rays[0], "points_shaded": int(len(cuts)), "texels_shaded": int(len(todo) - between.sum()),
+             "texels_interpolated": int(between.sum()),
              "subtexel_triangles": int(len(small)), "texels_antialiased": int(len(aa)),
              "texel_samples": int(samples)}
     return ts, stats

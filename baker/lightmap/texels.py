@@ -421,3 +421,52 @@ def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size
                     continue                                  # inside its triangle: already at its centre
                 if continues_at(bvh, stack, corners, chart_tri[c], chart_back[c], px, py, pz, lift):
                     point[k, 0], point[k, 1], point[k, 2] = px, py, pz
+
+
+@njit(cache=True, parallel=True)
+def between_lattice(values, lum, known, target, point, map_off, map_size, reach, contrast, step):
+    """One level of adaptive shading: texels of `target` on the lattice of
+    spacing `step` but not on that of 2 step (i or j an odd multiple of
+    step) whose neighbours on the coarser lattice (the two `step` away in
+    their row or column, or the four diagonal ones) are all `known`, lie
+    within `reach` scene units and agree within `contrast` of the largest
+    luminance: their value is set, in place, to those neighbours' mean (the
+    bilinear interpolation at their centre). Returns (N,) bool, the texels
+    so set; the others in `target` need shading of their own."""
+    out = np.zeros(lum.shape[0], np.bool_)
+    r2 = reach * reach
+    two = 2 * step
+    for c in prange(map_size.shape[0]):
+        s = map_size[c]
+        o = map_off[c]
+        for j in range(0, s, step):
+            for i in range(0, s, step):
+                k = o + j * s + i
+                di, dj = i % two, j % two
+                if not target[k] or (di == 0 and dj == 0):
+                    continue
+                lo, hi = np.inf, 0.0
+                a0 = a1 = a2 = 0.0
+                ok = True
+                for e in range(4):
+                    ii = i + (di if e & 1 else -di)
+                    jj = j + (dj if e & 2 else -dj)
+                    if ii < 0 or jj < 0 or ii >= s or jj >= s:
+                        ok = False
+                        break
+                    kk = o + jj * s + ii
+                    d = 0.0
+                    for a in range(3):
+                        d += (point[k, a] - point[kk, a]) ** 2
+                    if not known[kk] or d > r2:
+                        ok = False
+                        break
+                    lo = min(lo, lum[kk])
+                    hi = max(hi, lum[kk])
+                    a0 += values[kk, 0]
+                    a1 += values[kk, 1]
+                    a2 += values[kk, 2]
+                if ok and hi - lo <= contrast * hi:
+                    values[k, 0], values[k, 1], values[k, 2] = 0.25 * a0, 0.25 * a1, 0.25 * a2
+                    out[k] = True
+    return out
