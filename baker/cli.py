@@ -500,7 +500,7 @@ def build_parser():
     p.add_argument("--texel-interpolate", type=float, metavar="T",
                    help="adaptive shading of lightcuts texels: every other texel of every other row is shaded, "
                         "and a texel between shaded ones that agree within T (a share of the brightest) takes "
-                        "their mean; the others are shaded too (default: 0.1 for default, 0 for high: every "
+                        "their mean; the others are shaded too (default: 0.2 for default, 0 for high: every "
                         "texel shaded)")
     p.add_argument("--texels", choices=("voxels", "lightcuts"),
                    help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")

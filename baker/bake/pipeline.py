@@ -15,7 +15,8 @@ from ..stats import Stats
 
 UV_MODES = ("per-triangle", "xatlas")
 TEXEL_SAMPLES = {"preview": 1, "default": 2, "high": 4}   # anti-aliasing grid side per preset (lightcuts texels)
-TEXEL_INTERPOLATE = {"default": 0.1}   # adaptive shading's agreement per preset (lightcuts texels; 0: every texel)
+TEXEL_INTERPOLATE = {"default": 0.2}   # adaptive shading's agreement per preset (lightcuts texels; 0: every texel)
+TEXEL_CONTRAST = {"default": 0.2}      # anti-aliasing's contrast per preset (else AA_CONTRAST)
 TEXEL_EPSILON = {"default": 0.01}      # the texels' lightcuts epsilon where it differs from the preset's frames'
 MAX_TEXEL_SAMPLES = 8
 
@@ -83,7 +84,7 @@ def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=
     if texel_interpolate is None:
         texel_interpolate = TEXEL_INTERPOLATE.get(preset, 0.0)
     return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls), int(texel_samples),
-                      AA_CONTRAST if texel_contrast is None else float(texel_contrast), float(texel_interpolate))
+                      TEXEL_CONTRAST.get(preset, AA_CONTRAST) if texel_contrast is None else float(texel_contrast), float(texel_interpolate))
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
