@@ -38,7 +38,8 @@ def main():
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     import baker
-    from baker.bake.pipeline import TEXEL_INTERPOLATE, TEXEL_SAMPLES, bake_config
+    from baker.bake.pipeline import TEXEL_CONTRAST, TEXEL_INTERPOLATE, TEXEL_SAMPLES, bake_config
+    from baker.lightmap import AA_CONTRAST
     from baker.lights import lightcuts_config
     scene = baker.load_scene("cornell_box")
     texel_values(scene, bake_config("preview", texel_density=16))  # compile
@@ -52,19 +53,24 @@ def main():
     r = ref.values[keep] @ LUM
     m = r.mean()
     rows = []
-    d = TEXEL_INTERPOLATE["default"]
-    runs = ([("preview", None, 1, 0.0)] + [("default", e, n, t) for e in (0.05, 0.02, 0.01) for n, t in
-                                           ((1, 0.0), (TEXEL_SAMPLES["default"], 0.0), (TEXEL_SAMPLES["default"], d))]
-            + [("high", e, n, 0.0) for e in (0.02, 0.01) for n in (1, TEXEL_SAMPLES["high"])])
-    for preset, eps, n, interp in runs:
+    # (preset, epsilon, grid side, adaptive agreement, anti-aliasing contrast): the presets as shipped and around them
+    n_d, n_h = TEXEL_SAMPLES["default"], TEXEL_SAMPLES["high"]
+    runs = ([("preview", None, 1, 0.0, 0.0)]
+            + [("default", e, n, t, AA_CONTRAST) for e in (0.05, 0.02, 0.01) for n, t in
+               ((1, 0.0), (n_d, 0.0), (n_d, 0.1))]
+            + [("default", e, n_d, TEXEL_INTERPOLATE["default"], TEXEL_CONTRAST["default"]) for e in (0.02, 0.01)]
+            + [("high", e, n, 0.0, AA_CONTRAST) for e in (0.02, 0.01) for n in (1, n_h)])
+    for preset, eps, n, interp, contrast in runs:
         tx, secs = texel_values(scene, bake_config(preset, texel_density=args.density, epsilon=eps,
-                                                   texel_samples=n, texel_interpolate=interp))
+                                                   texel_samples=n, texel_interpolate=interp,
+                                                   texel_contrast=contrast))
         if len(tx.values) != len(ref.values):
             raise SystemExit("texel layouts differ: cannot compare texel by texel")
         a = tx.values[keep] @ LUM
         e = math.sqrt(np.mean((a - r) ** 2)) / m
-        rows.append([preset, "voxels" if eps is None else f"lightcuts, eps {eps:g}", f"{n}x{n}", "-" if eps is None else
-                     "every texel" if interp == 0 else f"adaptive, {interp:g}", f"{secs:.2f}",
+        rows.append([preset, "voxels" if eps is None else f"lightcuts, eps {eps:g}",
+                     "-" if n == 1 else f"{n}x{n} above {contrast:.0%}",
+                     "-" if eps is None else "every texel" if interp == 0 else f"adaptive, {interp:.0%}", f"{secs:.2f}",
                      f"{100 * e:.2f}", f"{100 * np.percentile(np.abs(a - r) / m, 95):.1f}"])
     emit(args, f"Cornell box lightmap texels ({int(keep.sum()):,} texels at {args.density:g} per metre) against "
                f"a converged bake of ours ({t_ref:.0f} s)", rows,
