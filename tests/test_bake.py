@@ -655,3 +655,21 @@ def test_texels_across_a_shared_edge_sample_their_own_centre(make_scene):
         across += sum(not inside_2d(np.array([ii + 0.5, jj + 0.5]), q, 0) for ii, jj in
                       zip(i.ravel()[on], j.ravel()[on]))
     assert across >= 2 * 30, across     # texels across the diagonal, on both maps
+
+
+def test_default_bake_is_the_same_for_any_thread_count(cornell):
+    """The default tier's texels (lightcuts, adaptive shading, the 2x2 grid
+    at edges) bit for bit the same for 1, 2, 3 and all threads."""
+    from tests.threads import thread_counts
+    first = None
+    for n in thread_counts():
+        bake, _, tx, maps = bake_scene(cornell, bake_config("default", resolution=16, photons=20_000,
+                                                            direct_vpls=2048, texel_density=24, threads=n))
+        if first is None:
+            first = tx.values, maps.pages
+            c = bake.meta["counts"]
+            assert c["texels_interpolated"] > 0 and c["texels_antialiased"] > 0, c
+            continue
+        np.testing.assert_array_equal(tx.values, first[0], err_msg=f"{n} threads")
+        np.testing.assert_array_equal(maps.pages, first[1], err_msg=f"{n} threads")
+    assert first[0].max() > 0
