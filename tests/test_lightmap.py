@@ -194,7 +194,8 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     (i, j both even) are known: a texel between two (same row or column)
     or four (diagonal) known texels that agree within the contrast takes
     their mean; one whose neighbours differ by more, or that misses one (off
-    the map, or not known), or lies beyond `reach`, is left for shading."""
+    the map, or not known), or lies beyond `reach`, or faces another way,
+    is left for shading."""
     from baker.lightmap.texels import between_lattice
     s = 8
     i, j = np.meshgrid(np.arange(s), np.arange(s))          # texel k = j * s + i
@@ -208,15 +209,18 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     target = ~((i % 2 == 0) & (j % 2 == 0))
     point = np.stack([i * 0.1, j * 0.1, np.zeros(s * s)], axis=1)
     point[(j == 7) & (i == 3)] = [5.0, 5.0, 5.0]             # far from its neighbours: another surface
+    normal = np.tile([0.0, 0.0, 1.0], (s * s, 1))
+    normal[(j == 1) & (i == 3)] = [0.0, 0.0, -1.0]           # facing away: the other face of a thin wall
     v = values.copy()
-    got = between_lattice(v, np.nan_to_num(lum), known, target, point, np.array([0]), np.array([s]), 0.5, 0.1, 1)
+    got = between_lattice(v, np.nan_to_num(lum), known, target, point, normal, np.array([0]), np.array([s]), 0.5,
+                          0.1, 1)
     want = np.zeros(s * s, bool)
     for k in np.nonzero(target)[0]:
         di, dj = i[k] % 2, j[k] % 2
         nb = [(i[k] + a * di) + (j[k] + b * dj) * s for a in (-1, 1) for b in (-1, 1)]
         if min(i[k] - di, j[k] - dj) < 0 or max(i[k] + di, j[k] + dj) >= s or not known[nb].all():
             continue
-        if k == 7 * s + 3 or np.ptp(lum[nb]) > 0.1 * lum[nb].max():
+        if k in (7 * s + 3, 1 * s + 3) or np.ptp(lum[nb]) > 0.1 * lum[nb].max():
             continue
         want[k] = True
         assert np.allclose(v[k], values[nb].mean(axis=0), rtol=1e-12)

@@ -195,8 +195,8 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
         while step >= 1:
             level = want & (qi % step == 0) & (qj % step == 0) & ~on
             reach = np.inf if isinstance(layout, Charts) else 2.5 * step * texel  # xatlas: another chart
-            got = between_lattice(values, values @ LUM, on & ~inside, level & ~inside, point, off, size, reach,
-                                  float(interpolate), step)
+            got = between_lattice(values, values @ LUM, on & ~inside, level & ~inside, point, normals, off, size,
+                                  reach, float(interpolate), step)
             rest = np.nonzero(level & ~got)[0]
             values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool))
             between |= got

@@ -43,6 +43,7 @@ OUTSIDE = 1e-6        # texels: a centre farther than this from its triangle lie
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
 INSET = 0.5           # texels: a point clamped onto an edge moves this far inward
 FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
+SAME_FACING = 0.9     # adaptive shading interpolates only between texels whose normals' cosine is at least this
 PROBES = 16           # rays per texel for the inside-geometry test
 PROBE_BACK = 0.6      # fraction of probes on back faces that marks a texel inside geometry (a floor texel at the
 #                       foot of a one-sided wall seen from behind sees its back in half the hemisphere: not inside)
@@ -424,12 +425,14 @@ def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size
 
 
 @njit(cache=True, parallel=True)
-def between_lattice(values, lum, known, target, point, map_off, map_size, reach, contrast, step):
+def between_lattice(values, lum, known, target, point, normal, map_off, map_size, reach, contrast, step):
     """One level of adaptive shading: texels of `target` on the lattice of
     spacing `step` but not on that of 2 step (i or j an odd multiple of
     step) whose neighbours on the coarser lattice (the two `step` away in
     their row or column, or the four diagonal ones) are all `known`, lie
-    within `reach` scene units and agree within `contrast` of the largest
+    within `reach` scene units, face within SAME_FACING of its own normal
+    (on an xatlas page a neighbour may be another surface: the other face
+    of a thin wall) and agree within `contrast` of the largest
     luminance: their value is set, in place, to those neighbours' mean (the
     bilinear interpolation at their centre). Returns (N,) bool, the texels
     so set; the others in `target` need shading of their own."""
@@ -458,7 +461,8 @@ def between_lattice(values, lum, known, target, point, map_off, map_size, reach,
                     d = 0.0
                     for a in range(3):
                         d += (point[k, a] - point[kk, a]) ** 2
-                    if not known[kk] or d > r2:
+                    f = normal[k, 0] * normal[kk, 0] + normal[k, 1] * normal[kk, 1] + normal[k, 2] * normal[kk, 2]
+                    if not known[kk] or d > r2 or f < SAME_FACING:
                         ok = False
                         break
                     lo = min(lo, lum[kk])
