@@ -83,8 +83,10 @@ def bake_config(preset="default", uv="per-triangle", texel_density=None, texels=
         texel_samples = TEXEL_SAMPLES.get(preset, 1)
     if texel_interpolate is None:
         texel_interpolate = TEXEL_INTERPOLATE.get(preset, 0.0)
+    if texel_contrast is None:
+        texel_contrast = TEXEL_CONTRAST.get(preset, AA_CONTRAST)
     return BakeConfig(solver, uv, texel_density, preset, lc, int(preview_vpls), int(texel_samples),
-                      TEXEL_CONTRAST.get(preset, AA_CONTRAST) if texel_contrast is None else float(texel_contrast), float(texel_interpolate))
+                      float(texel_contrast), float(texel_interpolate))
 
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,

@@ -11,8 +11,8 @@ import numpy as np
 
 from .atlas import PAGE, Lightmaps, build_atlas, pack_quadtree
 from .charts import Charts, per_triangle_charts
-from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners, onto_coplanar,
-                     sub_texel_points, texel_points)
+from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners,
+                     onto_coplanar, sub_texel_points, texel_points)
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import XatlasLayout, xatlas_layout, xatlas_texels
 
@@ -183,6 +183,7 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
         cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
         corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
     want = found & ~by_corners
+    todo = np.nonzero(want)[0]
     between = np.zeros(len(point), bool)
     if interpolate > 0:   # shade the even lattice, then each texel between agreeing lattice texels takes their mean
         m_of = np.repeat(np.arange(len(size)), size * size)
@@ -203,9 +204,7 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
             on |= level
             step //= 2
     else:
-        todo = np.nonzero(want)[0]
         values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
-    todo = np.nonzero(want)[0]
     aa = np.zeros(0, np.int64)
     if samples > 1:
         valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
@@ -228,8 +227,8 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
     stats = {"cut_mean": float(cuts.mean()) if len(cuts) else 0.0, "cut_max": int(cuts.max(initial=0)),
-             "shadow_rays": rays[0], "points_shaded": int(len(cuts)), "texels_shaded": int(len(todo) - between.sum()),
-             "texels_interpolated": int(between.sum()),
+             "shadow_rays": rays[0], "points_shaded": int(len(cuts)),
+             "texels_shaded": int(len(todo) - between.sum()), "texels_interpolated": int(between.sum()),
              "subtexel_triangles": int(len(small)), "texels_antialiased": int(len(aa)),
              "texel_samples": int(samples)}
     return ts, stats
