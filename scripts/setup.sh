@@ -46,7 +46,7 @@ if [ "$WEB" = 1 ] && [ ! -d tests/web/node_modules/three ]; then
   echo "setup: installing the npm packages of tests/web (glTF-Validator, three.js, puppeteer-core)"
   (cd tests/web && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
 fi
-# compile (or load) the kernels of both render methods once, on a tiny image
+# compile (or load) the kernels of the render methods and the bake's tiers once, on tiny inputs
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 echo "setup: compiling the kernels (once: later runs load them from numba's cache)"
@@ -58,5 +58,10 @@ warm render cornell_box --width 8 --height 8 --method voxels --preset preview --
   -o "$tmp/w.png"
 warm render cornell_box --width 8 --height 8 --method pathtrace --spp 1 -o "$tmp/w.exr"
 warm bake cornell_box --preset preview --resolution 8 --photons 2000 -o "$tmp/w.glb"
+# the default preset's lightcuts texels and frames (without these a user's first default bake spends ~15 s compiling)
+warm bake cornell_box --preset default --resolution 8 --photons 2000 --direct-vpls 64 --texel-density 8 \
+  -o "$tmp/d.glb"
+warm render cornell_box --method lightcuts --width 8 --height 8 --resolution 8 --photons 2000 --direct-vpls 64 \
+  -o "$tmp/c.png"
 warm render "$tmp/w.glb" --method lightmap --width 8 --height 8 -o "$tmp/l.png"
 echo "setup: ready ($(.venv/bin/python --version), venv in .venv)"
