@@ -256,5 +256,41 @@ def vpl_irradiance(point, normal, vpls, corners, offset=1e-4):
         de = np.sqrt(dot(e, e))
         if ray_triangles(o, e / de, corners, 0.0, de * (1 - 1e-4))[1] >= 0:
             continue
-        total += vpls.power[k] * cl * cp / (np.pi * r2 + vpls.area[k])
+        g = cl * cp / (np.pi * r2 + vpls.area[k])
+        a = np.sqrt(vpls.area[k])
+        if vpls.indirect[k] and r < 3.0 * a:    # the near field of a voxel's patch: lightcuts.patch_g, blended into the point form from 2 to 3 sqrt(A)
+            g = (min(1.0, 3.0 - r / a) * patch_irradiance(p, n, vpls.position[k], vpls.normal[k], vpls.area[k])
+                 + max(0.0, r / a - 2.0) * g)
+        total += vpls.power[k] * g
     return total
+
+
+def patch_irradiance(p, n, centre, normal, area):
+    """F / A: the form factor from p (normal n) to the square of area A
+    centred on `centre` in the plane of `normal` (one pair of its edges
+    along the grid axis after the normal's largest component: x -> y,
+    y -> z, z -> x), the part above p's plane, by Lambert's formula
+    (|sum of edge angle x cos| / 2 pi)."""
+    e = np.roll(np.eye(3), -1, axis=0)[int(np.argmax(np.abs(normal)))]
+    t = e - dot(e, normal) * normal
+    t /= np.sqrt(dot(t, t))
+    b = np.cross(normal, t)
+    half = 0.5 * np.sqrt(area)
+    quad = [centre + half * (su * t + sv * b) - p for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    poly = []
+    for q, r in zip(quad, quad[1:] + quad[:1]):       # clip to n . x >= 0
+        hq, hr = dot(n, q), dot(n, r)
+        if hq >= 0:
+            poly.append(q)
+        if (hq < 0) != (hr < 0):
+            poly.append(q + hq / (hq - hr) * (r - q))
+    if len(poly) < 3:
+        return 0.0
+    total = 0.0
+    for a, c in zip(poly, poly[1:] + poly[:1]):
+        ua, uc = a / np.sqrt(dot(a, a)), c / np.sqrt(dot(c, c))
+        w = np.cross(ua, uc)
+        sn = np.sqrt(dot(w, w))
+        if sn > 0:
+            total += np.arctan2(sn, dot(ua, uc)) * dot(n, w) / sn
+    return abs(total) / (2 * np.pi * area)

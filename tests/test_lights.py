@@ -62,20 +62,24 @@ def test_tree_invariants(n, n_dir, seed):
 def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
     """A node's bound at a point p (normal n) is at least what its VPLs
     give p without visibility, sum of lum x cos_l cos_p / (pi r^2 + A)
-    over its leaves; at most the bound without cosines, lum / (pi d^2);
+    over its leaves (over a leaf's patch where p is near it); at most the
+    bound without cosines, lum / (pi d^2), where no patch can be nearer
+    than the box (beyond 3 sqrt(A) of the largest VPL's area);
     and the cosines do prune: with the VPLs' normals spread `spread`
     around one axis, some nodes are bounded well below lum / (pi d^2)
     (p beside or behind their cone, or their box below p's plane)."""
-    from baker.lights.lightcuts import COS_MIN, node_bound
+    from baker.lights.lightcuts import COS_MIN, node_bound, node_patches
     rng = np.random.default_rng(seed)
     axis = rng.normal(size=3)
     nor = axis / np.linalg.norm(axis) + spread * rng.normal(size=(n, 3))
     nor /= np.linalg.norm(nor, axis=1)[:, None]
     v = VPLs(np.zeros(n, np.int8), rng.uniform(-1, 1, (n, 3)), nor, rng.uniform(0, 2, (n, 3)) ** 3,
-             rng.uniform(0, 0.01, n), np.zeros(n, bool))
+             rng.uniform(0, 0.01, n), rng.uniform(size=n) < 0.7)
     t = build_tree(v, seed)
+    patch = np.where(v.indirect, v.area, 0.0)
+    node_patch = node_patches(t.rep, t.right, patch)
     lum = v.power @ LUM
-    pruned = 0
+    pruned = near = 0
     for _ in range(8):
         p = rng.uniform(-1.5, 1.5, 3)
         pn = rng.normal(size=3)
@@ -85,14 +89,19 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
         u = d / np.sqrt(r2)[:, None]
         cp, cl = u @ pn, -(u * v.normal).sum(axis=1)
         g = np.where((cp > COS_MIN) & (cl > COS_MIN), cl * cp / (np.pi * r2 + v.area), 0.0)
+        a = np.sqrt(v.area)
+        for k in np.nonzero((g > 0) & (np.sqrt(r2) < 3 * a) & v.indirect)[0]:   # the near field, over the patch
+            w = min(1.0, 3.0 - np.sqrt(r2[k]) / a[k])
+            g[k] = w * naive.patch_irradiance(p, pn, v.position[k], v.normal[k], v.area[k]) + (1 - w) * g[k]
+            near += 1
         for node in range(len(t)):
             if t.right[node] < 0:
                 continue
-            b = node_bound(t.lo, t.hi, t.axis, t.cos, t.lum, t.kind, node, *p, *pn)
+            b = node_bound(t.lo, t.hi, t.axis, t.cos, t.lum, t.kind, node, *p, *pn, node_patch)
             leaves = leaves_of(t, node)
             assert b >= (lum[leaves] * g[leaves]).sum() * (1 - 1e-9), node
             d2 = (np.maximum(0, np.maximum(t.lo[node] - p, p - t.hi[node])) ** 2).sum()
-            loose = t.lum[node] / (np.pi * d2) if d2 > 0 else np.inf
+            loose = t.lum[node] / (np.pi * d2) if d2 > 9 * node_patch[node] else np.inf
             assert b <= loose * (1 + 1e-9), node
             pruned += b < 0.5 * loose
     assert pruned > 0
@@ -295,16 +304,18 @@ def test_same_result_for_any_thread_count(cornell_lights):
 
 def test_cornell_frame_against_the_path_tracer(cornell_lights):
     """A lightcuts frame of the Cornell box (default lightcuts settings over
-    a 24-cell preview solution) against the path tracer at 1024 spp, 48 x
+    a 32-cell preview solution) against the path tracer at 1024 spp, 48 x
     48: relative RMSE over 4 x 4-pixel blocks (the path tracer's noise
-    averaged down) below 6% and the mean within 3% (measured: 4.9% and
-    1.022; 1.019 before the grazing-ray deferral. The bias is the voxel
-    solution's at 24 cells: a line a cell thick sees the boxes' bright tops
-    enlarged by up to half a cell from the ceiling, which gathers 4-7% more
-    than a continuous gather of the same radiosity)."""
+    averaged down) below 4.5% and the mean within 2% (measured: 2.95% and
+    1.008). At the shared fixture's 24 cells the voxel solution itself
+    reads 2-3% bright (a line a cell thick sees the boxes' bright tops
+    enlarged by up to half a cell from the ceiling: 1.022 with the bounded
+    point form, 1.030 with the patches' near field, which no longer hides
+    part of it at the concave edges); at 32 cells that bias is under 1%."""
     from baker.render import camera_array, render
     from baker.render.lightcuts_frame import render_lightcuts
-    scene, bvh, surf, sol, _ = cornell_lights
+    scene, bvh, surf, _, _ = cornell_lights
+    sol = solve(scene, solver_config("preview", resolution=32, photons=180_000), bvh=bvh, surfaces=surf)
     lights = build_lights(scene, sol, surf, lightcuts_config("default"))
     s = 48
     img, stats = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), s, s), s, s)
@@ -313,8 +324,8 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     a = (img @ LUM).reshape(s // 4, 4, s // 4, 4).mean(axis=(1, 3))
     b = (ref @ LUM).reshape(s // 4, 4, s // 4, 4).mean(axis=(1, 3))
     lit = b < 0.5 * b.max()  # the lamp's blocks out
-    assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.06
-    assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.03
+    assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.045
+    assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.02
     assert stats["edge_pixels"] > 0 and stats["cut_mean"] > 1
 
 
@@ -347,3 +358,48 @@ def test_ordered_list_is_an_unbiased_running_average(cornell_lights):
         lit = b > 0
         errs.append(np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean())
     assert errs[1] < 0.02 and errs[1] < 0.5 * errs[0], errs
+
+
+def test_near_field_at_a_concave_edge(make_scene):
+    """A wall of uniform radiosity B = 1 made of voxel-like VPLs (unit
+    squares of side h, power B h^2, at their centres) meeting the floor:
+    the irradiance at floor points x from the wall against the exact
+    integral over the wall (midpoint rule, 1000 x 2000). With the near
+    field the exact form factor of each VPL's patch (lightcuts.patch_g) it
+    is within 3% down to x = h / 4 (measured 0.995 at h / 4, 0.991 at
+    0.45 h, 0.984-0.986 at h and 2 h, where VPLs 3-5 patch sides away keep
+    the bounded point form's -1.5%); the bounded point form alone reads
+    0.55 and 0.81 at h / 4 and 0.45 h (the bias at concave edges the bakes
+    showed), and still does with near=False, which the viewer's GPU
+    preview keeps."""
+    from scenes.generate import GltfBuilder, quad
+    h, rows, cols = 0.05, 10, 20
+    b = GltfBuilder()
+    grey = b.material("grey", (0.5,) * 3)
+    b.mesh("floor", *quad((0, 0, -1), (1, 0, -1), (1, 0, 1), (0, 0, 1), facing=(0, 1, 0)), grey)
+    b.mesh("wall", *quad((0, 0, -1), (0, 1, -1), (0, 1, 1), (0, 0, 1), facing=(1, 0, 0)), grey)
+    scene = make_scene(b, "lights_near_field")
+    bvh, surf = build_scene_bvh(scene), pack(scene)
+    y, z = np.meshgrid((np.arange(rows) + 0.5) * h, (np.arange(cols) - cols / 2 + 0.5) * h)
+    n = y.size
+    pos = np.stack([np.zeros(n), y.ravel(), z.ravel()], axis=1)
+    wall = VPLs(np.zeros(n, np.int8), pos, np.tile([1.0, 0.0, 0.0], (n, 1)), np.full((n, 3), h * h),
+                np.full(n, h * h), np.ones(n, bool))
+    from baker.lights import Lights
+    lights = Lights(wall, build_tree(wall, 0))
+    xs = np.array([0.25, 0.45, 1.0, 2.0]) * h
+    pts = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
+    nrm = np.tile([0.0, 1.0, 0.0], (len(xs), 1))
+    near, _, _ = irradiance(lights, bvh, surf, pts, nrm, brute=True)
+    far, _, _ = irradiance(lights, bvh, surf, pts, nrm, brute=True, near=False)
+    cuts, _, _ = irradiance(lights, bvh, surf, pts, nrm, epsilon=1e-3)
+    k = 1000
+    yy, zz = np.meshgrid((np.arange(k) + 0.5) / k * rows * h, (np.arange(2 * k) + 0.5) / (2 * k) * cols * h
+                         - cols * h / 2)
+    for i, x in enumerate(xs):
+        r2 = x * x + yy * yy + zz * zz
+        exact = (x * yy / (np.pi * r2 * r2)).sum() * (rows * h / k) * (cols * h / (2 * k))
+        assert abs(near[i, 0] / exact - 1) < 0.03, (x / h, near[i, 0] / exact)
+        assert cuts[i, 0] == pytest.approx(near[i, 0], rel=2e-3)     # lightcuts takes the same near field
+        if x <= 0.45 * h:
+            assert far[i, 0] / exact < 0.85, (x / h, far[i, 0] / exact)

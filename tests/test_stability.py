@@ -200,8 +200,12 @@ def test_camera_inside_geometry_sees_black(cornell, method):
 
 
 def test_vpls_arbitrarily_close_stay_bounded():
-    """The bounded near-field term Phi cos cos / (pi r^2 + A): as the VPL
-    comes down onto the shading point, H rises to Phi / A and no further."""
+    """A voxel's VPL coming down onto the shading point, facing it: the
+    bounded point form Phi cos cos / (pi r^2 + A) at a distance, and from
+    2 sqrt(A) in the exact form factor of its patch (a square of area A
+    centred over the point: 4 x the corner form factor of its quarters),
+    so that H rises to Phi / A = the patch's radiosity and no further."""
+    from tests.naive import rectangle_form_factor
     from baker.lights import Lights, VPLs, build_tree, irradiance
     b = GltfBuilder()
     b.mesh("floor", *quad((-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1), facing=(0, 1, 0)),
@@ -222,7 +226,11 @@ def test_vpls_arbitrarily_close_stay_bounded():
         out.append(h[0, 0])
     out = np.array(out)
     assert np.isfinite(out).all() and np.all(np.diff(out) >= 0)
-    assert np.allclose(out, phi / (np.pi * heights ** 2 + area), rtol=1e-9)
+    a = np.sqrt(area)
+    assert heights[0] > 3 * a and (heights[1:] < 2 * a).all()
+    want = [phi / (np.pi * z ** 2 + area) if z > 3 * a else phi * 4 * rectangle_form_factor(a / 2, a / 2, z) / area
+            for z in heights]
+    assert np.allclose(out, want, rtol=1e-9)
     assert out[-1] == pytest.approx(phi / area)
     # exactly on the point the direction is undefined: no light, never inf or nan
     v = VPLs(np.zeros(1, np.int8), np.array([[0.1, 0.0, 0.1]]), np.array([[0.0, -1.0, 0.0]]),

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from .lightcuts import brute_force, lightcut, shade_points
+from .lightcuts import brute_force, lightcut, node_patches, shade_points
 from .lighttree import LightTree, build_tree
 from .ordered import ordered_vpls
 from .vpl import KIND_AREA, KIND_DIRECTIONAL, VPLs, concat, direct_vpls, indirect_vpls, make_vpls, sky_vpls
@@ -61,9 +61,11 @@ def build_lights(scene, solution, surfaces, config: LightcutsConfig) -> Lights:
 
 
 def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offset=1e-4, epsilon=0.02, cap=1000,
-               brute=False):
+               brute=False, near=True):
     """H (N, 3) float64 at points with unit normals (the side that
-    receives), plus cut sizes and shadow rays per point."""
+    receives), plus cut sizes and shadow rays per point. near: area VPLs
+    near a point are integrated over their patch (lightcuts.vpl_g; off:
+    the bounded point form throughout, as the viewer's GPU preview)."""
     points = np.ascontiguousarray(points, np.float64)
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
@@ -72,9 +74,11 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
         t = LightTree(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.zeros((1, 3)),
                       np.zeros(1), np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int8))
     lo, hi, axis, cos, power, lum, rep, right = packed(t)
+    patch = np.where(v.indirect & (v.kind == KIND_AREA), v.area, 0.0) if near else np.zeros(len(v))
     return shade_points(bvh.arrays, surfaces.arrays, lo, hi, axis, cos, power, lum, rep, right, t.kind, v.kind,
                         v.position, v.normal, v.area, v.power, points, normals, valid, float(offset), float(epsilon),
-                        int(cap), bool(brute))
+                        int(cap), bool(brute), patch,
+                        node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
 
 
 def packed(tree: LightTree):

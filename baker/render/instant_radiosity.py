@@ -41,7 +41,7 @@ def render_instant_radiosity(bvh, surfaces, ordered, cam, width, height, per_fra
             f -= 1
             break
         sub = VPLs(*(getattr(ordered, k)[a:b] for k in ("kind", "position", "normal", "power", "area", "indirect")))
-        h, _, _ = irradiance(Lights(sub, None), bvh, no_punctual, point, normal, shade, eps, brute=True)
+        h, _, _ = irradiance(Lights(sub, None), bvh, no_punctual, point, normal, shade, eps, brute=True, near=False)
         accum += h  # the sum over this frame's draws: the estimate is the mean over all draws so far
         new = base + albedo / math.pi * (punctual + accum / b)
         mean = float(new.mean()) or 1.0
