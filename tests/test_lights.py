@@ -403,3 +403,60 @@ def test_near_field_at_a_concave_edge(make_scene):
         assert cuts[i, 0] == pytest.approx(near[i, 0], rel=2e-3)     # lightcuts takes the same near field
         if x <= 0.45 * h:
             assert far[i, 0] / exact < 0.85, (x / h, far[i, 0] / exact)
+
+
+def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
+    """Pass 2 of a frame's anti-aliasing, exactly: a grey floor under a
+    point light, a black blocker above it casting a straight shadow edge
+    across the view. Pass 1 sees no edge there (one material, one normal,
+    smooth depth). The floor's indirect VPLs lie in its plane and light it
+    not at all, so a pixel's value is albedo / pi x H at its points, H =
+    I h / (h^2 + r^2)^(3/2) where lit. Every pixel the edge crosses (its
+    4 x 4 pattern part lit, part dark) is exactly the mean over its
+    pattern, neither lit nor dark; every other pixel is exactly its
+    centre's value or its pattern's mean. With aa=False the crossed
+    pixels are all or nothing."""
+    from scenes.generate import quad
+    from baker.scene.gltf_write import GltfBuilder
+    from baker.render import camera_array
+    from baker.render.lightcuts_frame import AA, render_lightcuts, trace_samples
+    xe, h, power, rho = 0.3137, 3.0, 5.0, 0.5
+    b = GltfBuilder()
+    grey = b.material("grey", (rho,) * 3)
+    black = b.material("black", (0.0,) * 3)
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)), grey)
+    b.mesh("blocker", *quad((xe, 1, -2.5), (2.5, 1, -2.5), (2.5, 1, 2.5), (xe, 1, 2.5), facing=(0, -1, 0)), black)
+    b.light("bulb", "point", intensity=power, position=(xe, h, 0))
+    b.camera("down", (xe - 0.05, 0.8, -0.1), (0.0, -1.0, 0.25), yfov_deg=50)
+    scene = make_scene(b, "frame_shadow_edge")
+    bvh, surf = build_scene_bvh(scene), pack(scene)
+    sol = solve(scene, solver_config("preview", resolution=16, photons=20_000), bvh=bvh, surfaces=surf)
+    lights = build_lights(scene, sol, surf, lightcuts_config("default"))
+    s = 32
+    cam = camera_array(scene.camera(None), s, s)
+    n = s * s
+    pix = np.repeat(np.arange(n), AA * AA)
+    pts = trace_samples(bvh.arrays, surf.arrays, cam, s, s, pix, np.tile(np.arange(AA * AA), n), AA,
+                        1e-5 * surf.scale)
+    assert pts[4].all()  # every sample on the floor
+    x, z = pts[0][:, 0], pts[0][:, 2]
+    lit = (x < xe).reshape(n, AA * AA)
+    exact = (rho / np.pi * power * h / (h * h + (x - xe) ** 2 + z * z) ** 1.5).reshape(n, AA * AA) * lit
+    mean = exact.mean(axis=1)
+    centre_pts = trace_samples(bvh.arrays, surf.arrays, cam, s, s, np.arange(n), np.zeros(n, np.int64), 1,
+                               1e-5 * surf.scale)[0]
+    centre = rho / np.pi * power * h / (h * h + (centre_pts[:, 0] - xe) ** 2 + centre_pts[:, 2] ** 2) ** 1.5
+    centre *= centre_pts[:, 0] < xe
+    crossed = lit.any(axis=1) & ~lit.all(axis=1)
+    assert 10 <= crossed.sum() <= 3 * s
+    img, stats = render_lightcuts(bvh, surf, lights, cam, s, s)
+    got = img[..., 1].reshape(n).astype(np.float64)
+    assert stats["edge_pixels"] == 0 and stats["contrast_pixels"] >= crossed.sum()
+    assert np.allclose(got[crossed], mean[crossed], rtol=1e-5, atol=0)
+    assert np.all((mean[crossed] > 0.02 * exact.max()) & (mean[crossed] < exact[crossed].max(axis=1)))
+    either = np.isclose(got, centre, rtol=1e-5, atol=1e-12) | np.isclose(got, mean, rtol=1e-5, atol=1e-12)
+    assert either.all()
+    plain, _ = render_lightcuts(bvh, surf, lights, cam, s, s, aa=False)
+    flat = plain[..., 1].reshape(n).astype(np.float64)
+    assert np.allclose(flat, centre, rtol=1e-5, atol=1e-12)
+    assert (flat[crossed] == 0).any() and (flat[crossed] > 0).any()

@@ -6,7 +6,10 @@ Pass 1 shoots one ray through each pixel's centre and records what it hit
 edge: another material, a normal more than ~25 degrees off, a depth more
 than 5% off, or background) take 16 samples on a fixed 4 x 4 pattern
 instead; the others keep their one. All shading points go through
-lightcuts in one batch:
+lightcuts in one batch. Pass 2: a pixel whose luminance differs from a
+4-neighbour's by more than CONTRAST of the brighter (a shadow's or a light
+patch's edge across one surface, which pass 1 cannot see) takes the same
+16 samples, in a second batch:
 
     L = albedo / pi * H + L_e      (the back of a one-sided surface: black;
                                     no hit: the sky's radiance, if any)
@@ -26,6 +29,8 @@ from .camera import primary_ray, subpixel
 AA = 4                 # the edge pixels' pattern: AA x AA
 NORMAL_COS = 0.9
 DEPTH_REL = 0.05
+CONTRAST = 0.2         # pass 2: luminance contrast to a 4-neighbour (a cut's own error is a few %)
+LUMA = np.array([0.2126, 0.7152, 0.0722])
 BATCH = 1 << 16        # shading points per lightcuts call (progress and Ctrl-C between calls)
 
 
@@ -94,28 +99,33 @@ def edge_pixels(mat, normal, depth, width, height):
     return out
 
 
-def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
-                     brute=False, aa=True):
-    """Linear radiance image (height, width, 3) float32 and statistics
-    (cut sizes, shadow rays, edge pixels)."""
+@njit(cache=True, parallel=True)
+def contrast_pixels(lum, done, width, height, contrast):
+    """(h * w,) bool: pixels not `done` whose luminance differs from a
+    4-neighbour's by more than `contrast` of the brighter one."""
+    out = np.zeros(width * height, np.bool_)
+    for y in prange(height):
+        for x in range(width):
+            k = y * width + x
+            if done[k]:
+                continue
+            for e in range(4):
+                xx = x + (1 if e == 0 else (-1 if e == 1 else 0))
+                yy = y + (1 if e == 2 else (-1 if e == 3 else 0))
+                if xx < 0 or yy < 0 or xx >= width or yy >= height:
+                    continue
+                q = yy * width + xx
+                if abs(lum[k] - lum[q]) > contrast * max(lum[k], lum[q]):
+                    out[k] = True
+    return out
+
+
+def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals):
+    """Radiance (n, 3) summed per owner pixel from the samples (the tuple
+    trace_samples returns) by lightcuts; adds to the totals (points,
+    cut sizes, shadow rays)."""
     from ..lights import irradiance
     from ..startup import checkpoint
-    n = width * height
-    eps = 1e-5 * surfaces.scale
-    pix = np.arange(n, dtype=np.int64)
-    first = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, pix, np.zeros(n, np.int64), 1, eps)
-    edges = edge_pixels(first[5], first[1], first[3 + 3], width, height) if aa else np.zeros(n, bool)
-    e = np.nonzero(edges)[0]
-    if len(e):
-        epix = np.repeat(e, AA * AA)
-        esub = np.tile(np.arange(AA * AA), len(e))
-        second = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, epix, esub, AA, eps)
-        keep = ~edges
-        samples = [np.concatenate([a[keep], b]) for a, b in zip(first, second)]
-        owner = np.concatenate([pix[keep], epix])
-        weight = np.concatenate([np.ones(int(keep.sum())), np.full(len(epix), 1.0 / (AA * AA))])
-    else:
-        samples, owner, weight = list(first), pix, np.ones(n)
     point, normal, base, albedo, shade = samples[:5]
     h = np.zeros((len(point), 3))
     cuts = np.zeros(len(point), np.int64)
@@ -130,10 +140,55 @@ def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, ca
     radiance = base + albedo / math.pi * h
     image = np.zeros((n, 3))
     np.add.at(image, owner, radiance * weight[:, None])
-    shaded = shade.sum()
-    stats = {"shading_points": int(len(point)), "edge_pixels": int(len(e)),
-             "cut_mean": float(cuts[shade].mean()) if shaded else 0.0, "cut_max": int(cuts.max(initial=0)),
-             "shadow_rays": int(rays.sum()), "shadow_rays_per_pixel": float(rays.sum() / n)}
+    totals["points"] += len(point)
+    totals["shaded"] += int(shade.sum())
+    totals["cuts"] += int(cuts[shade].sum())
+    totals["cut_max"] = max(totals["cut_max"], int(cuts.max(initial=0)))
+    totals["rays"] += int(rays.sum())
+    return image
+
+
+def _supersample(bvh, surfaces, cam, width, height, pixels, eps):
+    """Samples on the AA x AA pattern over each of `pixels`, their owners
+    and weights."""
+    epix = np.repeat(pixels, AA * AA)
+    esub = np.tile(np.arange(AA * AA), len(pixels))
+    samples = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, epix, esub, AA, eps)
+    return samples, epix, np.full(len(epix), 1.0 / (AA * AA))
+
+
+def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
+                     brute=False, aa=True):
+    """Linear radiance image (height, width, 3) float32 and statistics
+    (cut sizes, shadow rays, edge and contrast pixels)."""
+    n = width * height
+    eps = 1e-5 * surfaces.scale
+    pix = np.arange(n, dtype=np.int64)
+    first = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, pix, np.zeros(n, np.int64), 1, eps)
+    edges = edge_pixels(first[5], first[1], first[3 + 3], width, height) if aa else np.zeros(n, bool)
+    e = np.nonzero(edges)[0]
+    if len(e):
+        second, epix, eweight = _supersample(bvh, surfaces, cam, width, height, e, eps)
+        keep = ~edges
+        samples = [np.concatenate([a[keep], b]) for a, b in zip(first, second)]
+        owner = np.concatenate([pix[keep], epix])
+        weight = np.concatenate([np.ones(int(keep.sum())), eweight])
+    else:
+        samples, owner, weight = list(first), pix, np.ones(n)
+    totals = {"points": 0, "shaded": 0, "cuts": 0, "cut_max": 0, "rays": 0}
+    image = _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals)
+    c = np.zeros(0, np.int64)
+    if aa:
+        c = np.nonzero(contrast_pixels(image @ LUMA, edges, width, height, CONTRAST))[0]
+    if len(c):
+        samples, owner, weight = _supersample(bvh, surfaces, cam, width, height, c, eps)
+        image[c] = 0.0
+        image += _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress,
+                        totals)
+    stats = {"shading_points": totals["points"], "edge_pixels": int(len(e)), "contrast_pixels": int(len(c)),
+             "cut_mean": totals["cuts"] / totals["shaded"] if totals["shaded"] else 0.0,
+             "cut_max": totals["cut_max"], "shadow_rays": totals["rays"],
+             "shadow_rays_per_pixel": totals["rays"] / n}
     return image.reshape(height, width, 3).astype(np.float32), stats
 
 
