@@ -5,11 +5,11 @@ Layout (depth-first): node i's left child is i + 1, its right child is
 first[i] + count[i] - 1 of the reordered triangle arrays. Triangles are
 stored reordered as their corners (v0, v1, v2), with `tri_index` mapping
 back to the scene's triangle numbers. The traversal reads the same tree
-collapsed to 4-wide nodes (collapse4, the WIDE_* record below), through
+collapsed to 8-wide nodes (collapse_wide, the WIDE_* record below), through
 `BVHArrays`; the binary arrays stay for tests and inspection.
 
 Depth: the traversal keeps at most three pending nodes per level of the
-4-wide tree (no deeper than the binary one) on a fixed stack of STACK_SIZE
+8-wide tree (no deeper than the binary one) on a fixed stack of STACK_SIZE
 entries, so the tree must stay shallower than a third of it. Binned SAH
 can peel a few triangles per level off a degenerate input (sizes or
 positions in a geometric progression: 16 bins over a range that shrinks
@@ -25,26 +25,31 @@ N_BINS = 16
 LEAF_MAX = 4
 COST_TRAVERSE = 1.0
 COST_INTERSECT = 1.0
-STACK_SIZE = 512      # traversal stack entries (int32): at most 3 per level of the 4-wide tree
-MAX_SAH_DEPTH = 64    # deeper nodes split at the median: 3 (depth + 1) < 3 (MAX_SAH_DEPTH + 33) <= STACK_SIZE
+WIDTH = 8             # children per node of the tree the traversal reads
+STACK_SIZE = 1024     # traversal stack entries (int32): at most WIDTH - 1 per level of the wide tree
+MAX_SAH_DEPTH = 64    # deeper nodes split at the median: 7 (depth + 1) < 7 (MAX_SAH_DEPTH + 33) <= STACK_SIZE
 
 BVHArrays = namedtuple("BVHArrays", [
-    "wide",        # (nw, 32) float32 4-wide nodes, one 128-byte record each (WIDE_* below); node 0 is the root
+    "wide",        # (nw, 64) float32 8-wide nodes, one 256-byte record each (WIDE_* below); node 0 is the root
     "wide_i",      # the same memory read as int32 (the child and count slots)
     "root_box",    # (6,) float64
     "tris",        # (nt, 9) float32 corners v0 v1 v2 in BVH order
     "tri_index",   # (nt,) int32 BVH order -> scene triangle
 ])
 
-# A 4-wide node's record: the four children's boxes as structure of arrays
-# (lo x of children 0-3, lo y, lo z, hi x, hi y, hi z), then per child its
-# node (inner child) or first triangle (leaf), then its triangle count (0:
-# an inner node; -1: no child in this slot; slots fill from 0).
+# An 8-wide node's record: the eight children's boxes as structure of
+# arrays (lo x of children 0-7, lo y, lo z, hi x, hi y, hi z), then per
+# child its node (inner child) or first triangle (leaf), then its triangle
+# count (0: an inner node; -1: no child in this slot; slots fill from 0).
+# Eight slots of a coordinate are one 256-bit load, and the eight slab
+# tests of a node compile to a few vector instructions where the CPU has
+# them (AVX2/AVX-512); a ray visits about a third fewer nodes than in a
+# 4-wide tree (bench/rays.py).
 WIDE_LO = 0
-WIDE_HI = 12
-WIDE_CHILD = 24
-WIDE_COUNT = 28
-WIDE_RECORD = 32
+WIDE_HI = 3 * WIDTH
+WIDE_CHILD = 6 * WIDTH
+WIDE_COUNT = 7 * WIDTH
+WIDE_RECORD = 8 * WIDTH
 
 
 @njit(cache=True)
@@ -266,23 +271,25 @@ def _area(lo, hi, i):
 
 
 @njit(cache=True)
-def collapse4(lo, hi, right, first, count):
-    """The binary tree (depth-first, as build_bvh returns it) as a 4-wide
-    one: each wide node takes a binary node's two children and opens the
-    inner one of largest surface area until it holds four (Wald et al.
-    2008, "Getting rid of packets"). Returns boxes (nw, 4, 6) float64
-    (lo xyz, hi xyz per slot), child (nw, 4) int32 and cnt (nw, 4) int32
-    (the WIDE_CHILD / WIDE_COUNT slots), wide nodes in depth-first order."""
+def collapse_wide(lo, hi, right, first, count, width):
+    """The binary tree (depth-first, as build_bvh returns it) as a
+    `width`-wide one: each wide node takes a binary node's two children and
+    opens the inner one of largest surface area until it holds `width`
+    (Wald et al. 2008, "Getting rid of packets"). Returns boxes (nw, width,
+    6) float64 (lo xyz, hi xyz per slot), child (nw, width) int32 and cnt
+    (nw, width) int32 (the WIDE_CHILD / WIDE_COUNT slots), wide nodes in
+    depth-first order."""
     nn = right.shape[0]
-    boxes = np.zeros((nn, 4, 6))
-    child = np.full((nn, 4), -1, np.int32)
-    cnt = np.full((nn, 4), -1, np.int32)
+    boxes = np.zeros((nn, width, 6))
+    child = np.full((nn, width), -1, np.int32)
+    cnt = np.full((nn, width), -1, np.int32)
     todo = np.empty(nn + 1, np.int64)   # binary nodes waiting for a wide node, with the wide id given
     todo_w = np.empty(nn + 1, np.int64)
     todo[0], todo_w[0] = 0, 0
     sp = 1
     nw = 1
-    kids = np.empty(4, np.int64)
+    kids = np.empty(width, np.int64)
+    ids = np.empty(width, np.int64)
     while sp > 0:
         sp -= 1
         b, w = todo[sp], todo_w[sp]
@@ -294,7 +301,7 @@ def collapse4(lo, hi, right, first, count):
         else:
             kids[0], kids[1] = b + 1, right[b]
             k = 2
-            while k < 4:
+            while k < width:
                 best, best_a = -1, -1.0
                 for i in range(k):
                     c = kids[i]
@@ -322,7 +329,6 @@ def collapse4(lo, hi, right, first, count):
             if count[c] > 0:
                 child[w, i], cnt[w, i] = first[c], count[c]
         # inner children get wide ids in order; pushed in reverse so the first is built next
-        ids = np.empty(4, np.int64)
         for i in range(k):
             if count[kids[i]] == 0:
                 ids[i] = nw

@@ -1,10 +1,11 @@
 """Ray queries on the BVH of `bvh.py`: closest hit and any hit (shadow rays).
 
-`bvh` is a `BVHArrays` (kernels/bvh.py): the binary SAH tree collapsed to a
-4-wide one, whose nodes hold their four children's boxes in one 128-byte
-record, so a ray visits about half as many nodes and each visit reads two
-adjacent cache lines. Leaf children are intersected at once; closest hit
-visits the nearest inner child next, any hit any of them. The scalar queries
+`bvh` is a `BVHArrays` (kernels/bvh.py): the binary SAH tree collapsed to an
+8-wide one, whose nodes hold their eight children's boxes in one 256-byte
+record (four adjacent cache lines). A visit tests the eight boxes in one
+branch-free loop (a bit mask of the children hit) and walks the set bits.
+Leaf children are intersected at once; closest hit visits the nearest
+inner child next, any hit the first in slot order. The scalar queries
 take a caller-owned `stack` (int32, STACK_SIZE: the build keeps the tree
 shallower, kernels/bvh.py) so that nothing is allocated per ray. Triangles
 are hit from both sides (watertight test, float64 arithmetic); the caller
@@ -12,8 +13,9 @@ decides what the back side means.
 """
 import numpy as np
 from numba import njit, prange
+from numba.cpython.unsafe.numbers import trailing_zeros
 
-from .bvh import STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO
+from .bvh import STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDTH
 from .geometry import unit_cross
 
 
@@ -88,21 +90,46 @@ def intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _slab4(w, node, s, ox, oy, oz, ix, iy, iz, tmin, tmax):
-    """Entry distance into slot s's box of 4-wide node `node`, inf on a miss
+def _slab_slot(w, node, s, ox, oy, oz, ix, iy, iz, tmin, tmax):
+    """Entry distance into slot s's box of wide node `node`, inf on a miss
     (boxes widened by 4 ulps as _slab)."""
     t0 = (w[node, WIDE_LO + s] - ox) * ix
     t1 = (w[node, WIDE_HI + s] - ox) * ix
     tn, tf = min(t0, t1), max(t0, t1)
-    t0 = (w[node, WIDE_LO + 4 + s] - oy) * iy
-    t1 = (w[node, WIDE_HI + 4 + s] - oy) * iy
+    t0 = (w[node, WIDE_LO + WIDTH + s] - oy) * iy
+    t1 = (w[node, WIDE_HI + WIDTH + s] - oy) * iy
     tn, tf = max(tn, min(t0, t1)), min(tf, max(t0, t1))
-    t0 = (w[node, WIDE_LO + 8 + s] - oz) * iz
-    t1 = (w[node, WIDE_HI + 8 + s] - oz) * iz
+    t0 = (w[node, WIDE_LO + 2 * WIDTH + s] - oz) * iz
+    t1 = (w[node, WIDE_HI + 2 * WIDTH + s] - oz) * iz
     tn, tf = max(tn, min(t0, t1)), min(tf, max(t0, t1))
     tn = max(tn, tmin)
     tf = min(tf, tmax)
     return tn if tn <= tf * 1.0000000000000009 else np.inf
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, tmax):
+    """Bit s set where slot s of wide node `node` holds a child whose box
+    the ray meets within (tmin, tmax): the WIDTH slab tests in one loop
+    with no branch (bench/rays.py: 1.3-1.6x the 4-wide tree's branching
+    loop on the walkthrough). The slab test is written out again here, not
+    shared with _slab_slot: a shared helper returning the (entry, exit)
+    pair cost 30% of the coherent shadow rays' speed (measured)."""
+    m = 0
+    for s in range(WIDTH):
+        t0 = (w[node, WIDE_LO + s] - ox) * ix
+        t1 = (w[node, WIDE_HI + s] - ox) * ix
+        tn, tf = min(t0, t1), max(t0, t1)
+        t0 = (w[node, WIDE_LO + WIDTH + s] - oy) * iy
+        t1 = (w[node, WIDE_HI + WIDTH + s] - oy) * iy
+        tn, tf = max(tn, min(t0, t1)), min(tf, max(t0, t1))
+        t0 = (w[node, WIDE_LO + 2 * WIDTH + s] - oz) * iz
+        t1 = (w[node, WIDE_HI + 2 * WIDTH + s] - oz) * iz
+        tn, tf = max(tn, min(t0, t1)), min(tf, max(t0, t1))
+        tn = max(tn, tmin)
+        tf = min(tf, tmax)
+        m |= ((tn <= tf * 1.0000000000000009) & (wi[node, WIDE_COUNT + s] >= 0)) << s
+    return m
 
 
 @njit(cache=True, error_model="numpy")
@@ -111,7 +138,7 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
     j = -1 and t = inf on a miss. cull_back: triangles seen from behind
     (winding normal . d > 0) are passed through, as a rasterizer culls them.
 
-    4-wide traversal: a node's four boxes are tested together; leaf
+    Wide traversal: a node's boxes are tested together (_hit_mask); leaf
     children are intersected at once, the nearest inner child is visited
     next and the others wait on the stack."""
     w, wi, root, tris = bvh.wide, bvh.wide_i, bvh.root_box, bvh.tris
@@ -125,14 +152,12 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
     sp = 0
     node = 0
     while True:
+        m = _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, best_t)
         near, near_t = -1, np.inf
-        for s in range(4):
+        while m:
+            s = trailing_zeros(m)
+            m &= m - 1
             n = wi[node, WIDE_COUNT + s]
-            if n < 0:
-                break
-            t = _slab4(w, node, s, ox, oy, oz, ix, iy, iz, tmin, best_t)
-            if t == np.inf:
-                continue
             c = wi[node, WIDE_CHILD + s]
             if n > 0:
                 for j in range(c, c + n):
@@ -143,7 +168,11 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
                             if nx * dx + ny * dy + nz * dz > 0.0:
                                 continue
                         best_t, best_j, best_u, best_v = th, j, u, v
-            elif t < near_t:
+                continue
+            t = _slab_slot(w, node, s, ox, oy, oz, ix, iy, iz, tmin, best_t)
+            if t == np.inf:
+                continue
+            if t < near_t:
                 if near >= 0:
                     stack[sp] = near
                     sp += 1
@@ -165,8 +194,8 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
 
 @njit(cache=True, error_model="numpy")
 def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
-    """True if anything is hit with t in (tmin, tmax) (4-wide traversal,
-    children in any order, leaves at once)."""
+    """True if anything is hit with t in (tmin, tmax) (wide traversal,
+    children in slot order, leaves at once)."""
     w, wi, root, tris = bvh.wide, bvh.wide_i, bvh.root_box, bvh.tris
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
@@ -177,13 +206,12 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
     sp = 0
     node = 0
     while True:
+        m = _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, tmax)
         nxt = -1
-        for s in range(4):
+        while m:
+            s = trailing_zeros(m)
+            m &= m - 1
             n = wi[node, WIDE_COUNT + s]
-            if n < 0:
-                break
-            if _slab4(w, node, s, ox, oy, oz, ix, iy, iz, tmin, tmax) == np.inf:
-                continue
             c = wi[node, WIDE_CHILD + s]
             if n > 0:
                 for j in range(c, c + n):

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels.bvh import (LEAF_MAX, STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDE_RECORD, BVHArrays,
-                           build_bvh, collapse4, pack_nodes, reorder_triangles)
+                           build_bvh, WIDTH, collapse_wide, pack_nodes, reorder_triangles)
 from ..kernels.traverse import any_hit_batch, closest_hit_batch
 
 
@@ -20,7 +20,7 @@ class BVH:
     tris: np.ndarray        # (nt, 9) float32 corners in BVH order
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
     depth: int = 0          # the deepest node's level (root 0)
-    wide: np.ndarray = None  # (nw, WIDE_RECORD) float32: the same tree 4-wide, what the traversal reads
+    wide: np.ndarray = None  # (nw, WIDE_RECORD) float32: the same tree 8-wide, what the traversal reads
 
     @property
     def arrays(self) -> BVHArrays:
@@ -69,8 +69,9 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
     outward to float32 so rounding never loses a hit."""
     corners = np.ascontiguousarray(np.asarray(corners, np.float32), np.float64)
     lo, hi, right, first, count, order, depth = build_bvh(corners, leaf_max)
-    if 3 * (depth + 1) > STACK_SIZE:  # the build bounds it (kernels/bvh.py): this would be a bug
-        raise RuntimeError(f"BVH depth {depth} exceeds the traversal stack ({STACK_SIZE} entries, 3 a level)")
+    if (WIDTH - 1) * (depth + 1) > STACK_SIZE:  # the build bounds it (kernels/bvh.py): this would be a bug
+        raise RuntimeError(f"BVH depth {depth} exceeds the traversal stack ({STACK_SIZE} entries, "
+                           f"{WIDTH - 1} a level)")
     scale = float(np.abs(corners).max()) if corners.size else 1.0
     pad = 1e-9 * max(scale, 1e-30)
     lo, hi = lo - pad, hi + pad
@@ -81,20 +82,20 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
 
 
 def _wide(lo, hi, right, first, count):
-    """The 4-wide records (kernels/bvh.py, WIDE_*), 64-byte aligned so each
-    is two cache lines; boxes rounded outward to float32."""
-    boxes, child, cnt = collapse4(lo, hi, right, first, count)
+    """The 8-wide records (kernels/bvh.py, WIDE_*), 64-byte aligned so each
+    is four cache lines; boxes rounded outward to float32."""
+    boxes, child, cnt = collapse_wide(lo, hi, right, first, count, WIDTH)
     nw = len(boxes)
     raw = np.zeros(nw * WIDE_RECORD + 16, np.float32)
     off = (-raw.ctypes.data % 64) // 4
     wide = raw[off:off + nw * WIDE_RECORD].reshape(nw, WIDE_RECORD)
     ints = wide.view(np.int32)
-    b32 = _outward32(boxes.reshape(-1, 6)).reshape(nw, 4, 6)
+    b32 = _outward32(boxes.reshape(-1, 6)).reshape(nw, WIDTH, 6)
     for q in range(3):
-        wide[:, WIDE_LO + 4 * q:WIDE_LO + 4 * q + 4] = b32[:, :, q]
-        wide[:, WIDE_HI + 4 * q:WIDE_HI + 4 * q + 4] = b32[:, :, 3 + q]
-    ints[:, WIDE_CHILD:WIDE_CHILD + 4] = child
-    ints[:, WIDE_COUNT:WIDE_COUNT + 4] = cnt
+        wide[:, WIDE_LO + WIDTH * q:WIDE_LO + WIDTH * (q + 1)] = b32[:, :, q]
+        wide[:, WIDE_HI + WIDTH * q:WIDE_HI + WIDTH * (q + 1)] = b32[:, :, 3 + q]
+    ints[:, WIDE_CHILD:WIDE_CHILD + WIDTH] = child
+    ints[:, WIDE_COUNT:WIDE_COUNT + WIDTH] = cnt
     return wide
 
 
