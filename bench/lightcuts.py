@@ -39,6 +39,7 @@ def main():
     while n <= args.max_vpls:
         counts.append(n)
         n *= 4
+    build_tree(make_vpls(scene, sol, surf, 64, 0, 0), 0)  # compile the build outside the timings
     for n in counts:
         vpls = make_vpls(scene, sol, surf, n, 0, 0)
         t = time.perf_counter()
