@@ -205,7 +205,7 @@ def cmd_render(args):
             n_pts = args.width * args.height
             with stats.stage("lightcuts_frame"), bar(n_pts, "lightcuts", "point") as b:
                 image, fstats = render_lightcuts(tree, surf, lights, cam, args.width, args.height, lc.epsilon,
-                                                 lc.cap, b.update)
+                                                 lc.cap, b.update, grow=b.grow)
             stats.count(**fstats, epsilon=lc.epsilon, cut_cap=lc.cap)
             print(f"{solution.summary()}\nVPLs {len(lights.vpls)} ({lights.vpls.counts()['vpls_direct']} direct, "
                   f"{lights.vpls.counts()['vpls_indirect']} indirect, {lights.vpls.counts()['vpls_sky']} sky)  "

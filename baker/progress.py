@@ -9,7 +9,7 @@ from .startup import checkpoint
 
 
 class Bar:
-    """.update(n), .set_postfix(...), .close(); a context manager."""
+    """.update(n), .grow(n), .set_postfix(...), .close(); a context manager."""
 
     def __init__(self, inner=None):
         self.inner = inner
@@ -18,6 +18,12 @@ class Bar:
         checkpoint()
         if self.inner is not None:
             self.inner.update(n)
+
+    def grow(self, n):
+        """The work turned out n units larger (or smaller) than announced."""
+        if self.inner is not None and n:
+            self.inner.total += n
+            self.inner.refresh()
 
     def set_postfix(self, **kw):
         if self.inner is not None:

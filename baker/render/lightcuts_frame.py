@@ -158,9 +158,11 @@ def _supersample(bvh, surfaces, cam, width, height, pixels, eps):
 
 
 def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
-                     brute=False, aa=True):
+                     brute=False, aa=True, grow=None):
     """Linear radiance image (height, width, 3) float32 and statistics
-    (cut sizes, shadow rays, edge and contrast pixels)."""
+    (cut sizes, shadow rays, edge and contrast pixels). progress(k): k more
+    shading points done; grow(k): k more points than width x height (the
+    anti-aliased pixels' samples), for a progress bar's total."""
     n = width * height
     eps = 1e-5 * surfaces.scale
     pix = np.arange(n, dtype=np.int64)
@@ -175,6 +177,8 @@ def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, ca
         weight = np.concatenate([np.ones(int(keep.sum())), eweight])
     else:
         samples, owner, weight = list(first), pix, np.ones(n)
+    if grow is not None:
+        grow(len(samples[0]) - n)
     totals = {"points": 0, "shaded": 0, "cuts": 0, "cut_max": 0, "rays": 0}
     image = _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals)
     c = np.zeros(0, np.int64)
@@ -182,6 +186,8 @@ def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, ca
         c = np.nonzero(contrast_pixels(image @ LUMA, edges, width, height, CONTRAST))[0]
     if len(c):
         samples, owner, weight = _supersample(bvh, surfaces, cam, width, height, c, eps)
+        if grow is not None:
+            grow(len(samples[0]))
         image[c] = 0.0
         image += _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress,
                         totals)
