@@ -303,19 +303,18 @@ def test_same_result_for_any_thread_count(cornell_lights):
 
 
 def test_cornell_frame_against_the_path_tracer(cornell_lights):
-    """A lightcuts frame of the Cornell box (default lightcuts settings over
-    a 32-cell preview solution) against the path tracer at 1024 spp, 48 x
-    48: relative RMSE over 4 x 4-pixel blocks (the path tracer's noise
-    averaged down) below 4.5% and the mean within 2% (measured: 2.95% and
-    1.008). At the shared fixture's 24 cells the voxel solution itself
-    reads 2-3% bright (a line a cell thick sees the boxes' bright tops
-    enlarged by up to half a cell from the ceiling: 1.022 with the bounded
-    point form, 1.030 with the patches' near field, which no longer hides
-    part of it at the concave edges); at 32 cells that bias is under 1%."""
+    """A lightcuts frame of the Cornell box at the default preset (its
+    voxel solution and lightcuts settings, as `voxbake render --method
+    lightcuts` runs it) against the path tracer at 1024 spp, 48 x 48:
+    relative RMSE over 4 x 4-pixel blocks (the path tracer's noise averaged
+    down) below 3.5% and the mean within 1.5% (measured: 2.33% and 1.003).
+    The preview preset's coarser voxels at 32 cells give 3.5% and 1.014
+    (a line a cell thick sees the boxes' bright tops enlarged by up to half
+    a cell from the ceiling: docs/design.md)."""
     from baker.render import camera_array, render
     from baker.render.lightcuts_frame import render_lightcuts
     scene, bvh, surf, _, _ = cornell_lights
-    sol = solve(scene, solver_config("preview", resolution=32, photons=180_000), bvh=bvh, surfaces=surf)
+    sol = solve(scene, solver_config("default"), bvh=bvh, surfaces=surf)
     lights = build_lights(scene, sol, surf, lightcuts_config("default"))
     s = 48
     img, stats = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), s, s), s, s)
@@ -324,8 +323,8 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     a = (img @ LUM).reshape(s // 4, 4, s // 4, 4).mean(axis=(1, 3))
     b = (ref @ LUM).reshape(s // 4, 4, s // 4, 4).mean(axis=(1, 3))
     lit = b < 0.5 * b.max()  # the lamp's blocks out
-    assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.045
-    assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.02
+    assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.035
+    assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.015
     assert stats["edge_pixels"] > 0 and stats["cut_mean"] > 1
 
 
