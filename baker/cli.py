@@ -200,7 +200,7 @@ def cmd_render(args):
             solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
             lc = _lightcuts_config(args)
             with stats.stage("lights"):
-                lights = build_lights(scene, solution, surf, lc)
+                lights = build_lights(scene, solution, surf, lc, tree)
             stats.count(**lights.vpls.counts())
             n_pts = args.width * args.height
             with stats.stage("lightcuts_frame"), bar(n_pts, "lightcuts", "point") as b:
@@ -220,7 +220,7 @@ def cmd_render(args):
             solution = solve(scene, config, stats=stats, bvh=tree, surfaces=surf, progress=True)
             lc = _lightcuts_config(args)
             with stats.stage("lights"):
-                lights = build_lights(scene, solution, surf, lc)
+                lights = build_lights(scene, solution, surf, lc, tree)
                 lo, hi = scene.bounds()
                 order = ordered_vpls(lights.vpls, args.vpls_per_frame * args.frames,
                                      0.5 * float(np.linalg.norm(hi - lo)), lc.seed)

@@ -459,3 +459,54 @@ def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
     flat = plain[..., 1].reshape(n).astype(np.float64)
     assert np.allclose(flat, centre, rtol=1e-5, atol=1e-12)
     assert (flat[crossed] == 0).any() and (flat[crossed] > 0).any()
+
+
+def test_voxel_vpls_under_a_curved_surface_are_put_on_it(make_scene):
+    """A sphere standing in a lit room: the photon-weighted centroid of a
+    voxel on the sphere lies inside it, by the sagitta of the voxel's patch,
+    so a shadow ray to it would leave through the sphere from behind and
+    its light would be lost. With the scene's BVH, build_lights moves each
+    such VPL along its normal onto the surface (a hair past): then almost
+    only VPLs at the contact have a surface just in front of them. VPLs with
+    nothing over them (the room's flat walls) stay exactly where they were, and power,
+    normals and areas do not change. At the contact, a floor voxel whose
+    ray meets the sphere from the front (or the ball's lowest voxels, the
+    floor) is not moved."""
+    from scenes.generate import box, icosphere, quad
+    from baker.scene.gltf_write import GltfBuilder
+    from baker.lights.vpl import SKIN
+    b = GltfBuilder()
+    white = b.material("white", (0.7, 0.7, 0.7))
+    lamp = b.material("lamp", (0.0, 0.0, 0.0), emission=(20.0, 20.0, 20.0))
+    b.mesh("room", *box((-1, 0, -1), (1, 2, 1), inward=True), white)
+    b.mesh("ball", *icosphere(3, 0.45, (0.1, 0.45, 0.05)), white)
+    b.mesh("lamp", *quad((-0.2, 1.99, -0.2), (0.2, 1.99, -0.2), (0.2, 1.99, 0.2), (-0.2, 1.99, 0.2),
+                         facing=(0, -1, 0)), lamp)
+    scene = make_scene(b, "vpl_ball")
+    bvh, surf = build_scene_bvh(scene), pack(scene)
+    sol = solve(scene, solver_config("preview", resolution=24, photons=100_000), bvh=bvh, surfaces=surf)
+    cfg = lightcuts_config("preview")
+    plain = build_lights(scene, sol, surf, cfg).vpls
+    moved = build_lights(scene, sol, surf, cfg, bvh).vpls
+    for f in ("kind", "normal", "power", "area", "indirect"):
+        assert np.array_equal(getattr(plain, f), getattr(moved, f))
+    ind = np.nonzero(plain.indirect)[0]
+    side = np.sqrt(plain.area[ind])
+
+    def under(vp):
+        d = 0.25 * side
+        return bvh.occluded(vp.position[ind] + vp.normal[ind] * d[:, None], -vp.normal[ind], tmax=d * (1 - 1e-6))
+
+    before, after = under(plain), under(moved)
+    floor = plain.position[ind][:, 1] < 1e-6
+    shift = np.linalg.norm(moved.position[ind] - plain.position[ind], axis=1)
+    changed = shift > 0
+    assert changed.sum() >= 100 and not (changed & ~before).any()  # only buried ones move
+    assert (shift[changed] <= SKIN * side[changed]).all()
+    on_ball = np.abs(np.linalg.norm(moved.position[ind][changed] - [0.1, 0.45, 0.05], axis=1) - 0.45) < 0.02
+    assert on_ball.all()  # onto the sphere (its flat facets lie within 1.5% of the radius)
+    # what is still under a surface: the contact, where the floor's voxels meet the ball from the front and
+    # the ball's lowest voxels the floor (each a surface of another body facing them)
+    contact = plain.position[ind][:, 1] < 0.25 * side
+    # (and, measured, 1 of 577 on the ball whose voxel's normal is more than 60 degrees off the facet over it)
+    assert after.any() and (after & ~contact).sum() <= 0.01 * before.sum() and not changed[floor].any()

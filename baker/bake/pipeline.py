@@ -124,7 +124,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
         from ..lightmap import lightcuts_texels
         lc = config.lightcuts
         with stats.stage("lights"):
-            lights = build_lights(scene, solution, surfaces, lc)
+            lights = build_lights(scene, solution, surfaces, lc, bvh)
         shading.update(lights.vpls.counts())
         with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
             texels, st = lightcuts_texels(scene, solution, bvh, surfaces, charts, lights, lc.epsilon, lc.cap,
@@ -154,7 +154,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
             if lights is None:
                 lights = build_lights(scene, solution, surfaces, lightcuts_config(
                     config.preset if config.preset in ("preview", "default", "high") else "default",
-                    seed=config.solver.seed))
+                    seed=config.solver.seed), bvh)
             lo, hi = scene.bounds()
             ordered = ordered_vpls(lights.vpls, config.preview_vpls, 0.5 * float(np.linalg.norm(hi - lo)),
                                    config.solver.seed)

@@ -55,8 +55,10 @@ class Lights:
     tree: LightTree | None
 
 
-def build_lights(scene, solution, surfaces, config: LightcutsConfig) -> Lights:
-    vpls = make_vpls(scene, solution, surfaces, config.direct_vpls, config.sky_vpls, config.seed)
+def build_lights(scene, solution, surfaces, config: LightcutsConfig, bvh=None) -> Lights:
+    """The VPLs and their tree. bvh: the scene's BVH (puts voxel VPLs that
+    lie just under their curved surface onto it: vpl.on_surface)."""
+    vpls = make_vpls(scene, solution, surfaces, config.direct_vpls, config.sky_vpls, config.seed, bvh)
     return Lights(vpls, build_tree(vpls, config.seed) if len(vpls) else None)
 
 

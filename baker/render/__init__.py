@@ -40,7 +40,7 @@ def render(scene, camera=None, width=512, height=512, method="pathtrace", spp=64
         from .lightcuts_frame import render_lightcuts
         lc = lightcuts or lightcuts_config("default")
         solution = solution or solve(scene, config or solver_config(), bvh=bvh, surfaces=surfaces)
-        lights = build_lights(scene, solution, surfaces, lc)
+        lights = build_lights(scene, solution, surfaces, lc, bvh)
         return render_lightcuts(bvh, surfaces, lights, cam_arr, width, height, lc.epsilon, lc.cap, progress)[0]
     from ..errors import VoxgiError
     raise VoxgiError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
