@@ -48,8 +48,8 @@ def main():
             warm = baker.solve(scene, baker.solver_config("preview", resolution=8, photons=2000), bvh=bvh,
                                surfaces=surf)
             lc = lightcuts_config("preview")
-            render_lightcuts(bvh, surf, build_lights(scene, warm, surf, lc), camera_array(scene.camera(None, bvh), 8, 8),
-                             8, 8, lc.epsilon, lc.cap)
+            render_lightcuts(bvh, surf, build_lights(scene, warm, surf, lc, bvh),
+                             camera_array(scene.camera(None, bvh), 8, 8), 8, 8, lc.epsilon, lc.cap)
         ref, lamp, ref_noise, _ = cached_reference(name, scene, bvh, surf, cam, s, args.ref_spp)
         rows = []
         pt_pts = []
@@ -66,7 +66,7 @@ def main():
             for eps in (0.05, 0.02, 0.01):
                 lc = lightcuts_config(preset, epsilon=eps)
                 t1 = time.perf_counter()
-                lights = build_lights(scene, sol, surf, lc)
+                lights = build_lights(scene, sol, surf, lc, bvh)
                 img, st = render_lightcuts(bvh, surf, lights, cam, s, s, lc.epsilon, lc.cap)
                 t_frame = time.perf_counter() - t1
                 e = rel_rmse(img, ref, lamp, ref_noise)

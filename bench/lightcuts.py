@@ -80,7 +80,7 @@ def main():
         t0 = time.perf_counter()
         sol2 = baker.solve(scene, baker.solver_config("default"), bvh=bvh, surfaces=surf)
         t1 = time.perf_counter()
-        lights = build_lights(scene, sol2, surf, lightcuts_config("default"))
+        lights = build_lights(scene, sol2, surf, lightcuts_config("default"), bvh)
         t2 = time.perf_counter()
         img, st = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), f, f), f, f)
         t3 = time.perf_counter()

@@ -315,7 +315,7 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     from baker.render.lightcuts_frame import render_lightcuts
     scene, bvh, surf, _, _ = cornell_lights
     sol = solve(scene, solver_config("default"), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("default"))
+    lights = build_lights(scene, sol, surf, lightcuts_config("default"), bvh)
     s = 48
     img, stats = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), s, s), s, s)
     ref = render(scene, 0, s, s, spp=1024, bvh=bvh, surfaces=surf)
