@@ -76,6 +76,17 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
     return point, normal, base, albedo, shade, mat, depth
 
 
+@njit(cache=True, inline="always")
+def _neighbour(x, y, e, width, height):
+    """Pixel index of 4-neighbour e (0-3: right, left, down, up) of (x, y),
+    -1 beyond the image."""
+    xx = x + (1 if e == 0 else (-1 if e == 1 else 0))
+    yy = y + (1 if e == 2 else (-1 if e == 3 else 0))
+    if xx < 0 or yy < 0 or xx >= width or yy >= height:
+        return -1
+    return yy * width + xx
+
+
 @njit(cache=True)
 def edge_pixels(mat, normal, depth, width, height):
     """(h * w,) bool: pixels whose 4-neighbours differ (material, normal,
@@ -85,11 +96,9 @@ def edge_pixels(mat, normal, depth, width, height):
         for x in range(width):
             k = y * width + x
             for e in range(4):
-                xx = x + (1 if e == 0 else (-1 if e == 1 else 0))
-                yy = y + (1 if e == 2 else (-1 if e == 3 else 0))
-                if xx < 0 or yy < 0 or xx >= width or yy >= height:
+                q = _neighbour(x, y, e, width, height)
+                if q < 0:
                     continue
-                q = yy * width + xx
                 if mat[k] != mat[q]:
                     out[k] = True
                 elif mat[k] >= 0:
@@ -110,11 +119,9 @@ def contrast_pixels(lum, done, width, height, contrast):
             if done[k]:
                 continue
             for e in range(4):
-                xx = x + (1 if e == 0 else (-1 if e == 1 else 0))
-                yy = y + (1 if e == 2 else (-1 if e == 3 else 0))
-                if xx < 0 or yy < 0 or xx >= width or yy >= height:
+                q = _neighbour(x, y, e, width, height)
+                if q < 0:
                     continue
-                q = yy * width + xx
                 if abs(lum[k] - lum[q]) > contrast * max(lum[k], lum[q]):
                     out[k] = True
     return out
