@@ -102,10 +102,16 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     n_, d_ = cut[a][:3], cut[a][3]
                     sa, sb = dot(centroid[a], n_) - d_, dot(centroid[b], n_) - d_
                     if abs(sb) <= tau * h:  # b on that surface: the side it faces
+                        if a_waits and abs(sa) > tau * h and dot(n_, u) * sign >= 0:
+                            return 2  # a's ray runs along or away from that surface: it passes b
                         return (1 if a_waits else 2) if dot(normal[b], n_) * sign < -0.5 else 0
                     if sb * sign >= -tau * h or sa == sb:
                         return 0
-                    way = 1 if dot(n_, u) * (sign if a_waits else -sign) < 0 else 2
+                    way = 2
+                    if dot(n_, u) * (sign if a_waits else -sign) < 0:  # heads for the plane: met before level?
+                        sw, ahead = (sa, dot(centroid[b] - centroid[a], u)) if a_waits else \
+                            (sb, dot(centroid[a] - centroid[b], u))
+                        way = 1 if -sw / dot(n_, u) <= ahead + tau * h else 2
                     if cut[b][4] != 0:
                         cn = dot(n_, cut[b][:3])
                         if abs(cn) > 0.999 and abs(d_ - cn * cut[b][3]) < tau * h:
@@ -212,6 +218,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         for x in waiting:
                             if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h or edge_last or convex(x):
                                 stay.append(x)
+                            elif cut is not None and (lambda w: 1 not in w and 2 in w)(
+                                    [cut_between(y, x, False), cut_between(x, y, True)]):
+                                stay.append(x)  # y's back lies beyond a cutting surface x's ray moves away from
                             elif x in deferred and dot(centroid[y] - centroid[deferred[x]],
                                                        normal[deferred[x]]) > tau * h + 1e-5 * h:
                                 met.pop(x, None)  # its ray hits y's back before the plane it deferred on

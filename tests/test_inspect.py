@@ -57,3 +57,78 @@ def test_dropped_duplicates_are_counted():
     assert report.duplicates_dropped == 4 and "4 duplicate triangles dropped" in report.summary()
     assert report.two_sided_emitters == 2 and "both faces emit" in report.summary()  # the lamp, read two-sided
     assert geometry_report(load_scene(path, one_sided=True)).two_sided_emitters == 0
+
+
+def _floor_scene(make_scene, name, second, lamp=False, two_sided_first=False):
+    """A 2 x 2 floor quad facing up and a second quad in its plane
+    (corners `second`, subdivided 3 x 3 so no triangle repeats the first's)."""
+    from baker.scene.gltf_write import GltfBuilder
+    b = GltfBuilder()
+    floor = b.material("floor", (0.5,) * 3, double_sided=two_sided_first)
+    other = b.material("other", (0.8,) * 3, emission=(2.0,) * 3 if lamp else (0.0,) * 3)
+    b.mesh("floor", *quad((0, 0, 0), (2, 0, 0), (2, 0, 2), (0, 0, 2), facing=(0, 1, 0)), floor)
+    b.mesh("other", *quad(*second, facing=(0, 1, 0), subdiv=3), other)
+    b.light("sun", "directional", intensity=1.0, direction=(0, -1, 0))
+    return make_scene(b, name)
+
+
+def test_coplanar_overlap_is_cut_at_loading_and_counts_once(make_scene):
+    """A second tiling over half of a floor: the loader cuts the covered
+    part out of the later one (file order), so the union counts once: in
+    the triangles' area, the audit and the voxels."""
+    from baker.voxels.voxelize import voxelize
+    scene = _floor_scene(make_scene, "overlap_half", ((1, 0, 1), (3, 0, 1), (3, 0, 3), (1, 0, 3)))
+    assert any("overlapping part out of 8 coplanar triangles" in w for w in scene.warnings), scene.warnings
+    c = scene.triangle_corners()
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    assert (n[:, 1] > 0).all()                                     # every piece still faces up
+    assert scene.triangle_areas().sum() == pytest.approx(4 + 4 - 1, rel=1e-6)
+    assert coplanar_overlaps(c)[0] == 0
+    report = geometry_report(scene)
+    assert report.overlaps_cut == 8 and "cut out of them when loading" in report.summary()
+    other = scene.material_ids == 1
+    assert scene.triangle_areas()[other].sum() == pytest.approx(3, rel=1e-6)   # the floor, first, stays whole
+    vox = voxelize(scene, resolution=12)
+    assert vox.area.sum() == pytest.approx(7, rel=1e-5)
+
+
+def test_cut_pieces_interpolate_the_corners_attributes():
+    """The new corners lie on their triangle's plane, and their normals and
+    texture coordinates are the original's, interpolated."""
+    from baker.scene.overlaps import cut_overlaps
+    v = np.array([[0, 0, 0], [2, 0, 0], [2, 0, 2], [0, 0, 2], [1, 0, 1], [3, 0, 1], [3, 0, 3], [1, 0, 3]], float)
+    t = np.array([[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]])
+    uv = v[:, [0, 2]] * 0.3 + 0.1                                  # a linear map of the plane
+    nrm = np.tile([0.0, 1.0, 0.0], (8, 1))
+    v2, t2, m2, n2, uv2, (cut, area) = cut_overlaps(v, t, np.array([0, 0, 1, 1]), np.zeros(2, bool),
+                                                   np.zeros(2, bool), nrm, uv)
+    assert cut == 2 and area == pytest.approx(1.0)
+    assert np.abs(v2[:, 1]).max() == 0
+    assert np.allclose(uv2, v2[:, [0, 2]] * 0.3 + 0.1) and np.allclose(n2, [0, 1, 0])
+    assert (np.cross(v2[t2][:, 1] - v2[t2][:, 0], v2[t2][:, 2] - v2[t2][:, 0])[:, 1] > 0).all()
+
+
+def test_lamp_on_the_ceilings_plane_stays_whole(make_scene):
+    """An emitter ranks first: the surface it lies on loses its area, the
+    lamp emits from all of it, once."""
+    scene = _floor_scene(make_scene, "overlap_lamp", ((0.5, 0, 0.5), (1.5, 0, 0.5), (1.5, 0, 1.5), (0.5, 0, 1.5)),
+                         lamp=True)
+    lamp = scene.material_ids == 1
+    assert scene.triangle_areas()[lamp].sum() == pytest.approx(1.0, rel=1e-6)
+    assert scene.triangle_areas()[~lamp].sum() == pytest.approx(3.0, rel=1e-6)
+    assert scene.emitted_power() == pytest.approx(np.pi * 2.0 * 1.0, rel=1e-6)
+
+
+def test_one_sided_lamp_on_a_two_sided_surface_is_left_and_reported(make_scene):
+    """A two-sided surface covers both faces of a one-sided tiling in its
+    plane and cuts it. A one-sided lamp ranks first but covers only one
+    face of a two-sided ceiling: cutting either would lose a face, so both
+    stay and the audit reports the overlap."""
+    corners = ((1, 0, 1), (3, 0, 1), (3, 0, 3), (1, 0, 3))
+    cut = _floor_scene(make_scene, "overlap_sided", corners, two_sided_first=True)
+    assert cut.triangle_areas().sum() == pytest.approx(7, rel=1e-6)
+    scene = _floor_scene(make_scene, "overlap_sided_lamp", corners, lamp=True, two_sided_first=True)
+    assert not any("coplanar" in w for w in scene.warnings)
+    report = geometry_report(scene)
+    assert report.overlapping_pairs > 0 and report.overlap_area == pytest.approx(1.0, rel=1e-6)
+    assert "one-sided triangle over a two-sided one" in report.summary()

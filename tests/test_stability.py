@@ -146,8 +146,12 @@ def test_slivers_and_near_coincident_triangles_in_a_furnace(tmp_path):
     """A closed furnace (every surface emits E and reflects rho) holding a
     double-sided sliver (aspect 1e-6), a double-sided panel 1e-6 off a
     wall (near-coincident) and a degenerate triangle (dropped): every ray
-    still meets a surface of radiosity E / (1 - rho), so B is that
-    everywhere, within the photon noise."""
+    from inside still meets a surface of radiosity E / (1 - rho), so B is
+    that everywhere, within the photon noise. The panel lies in the wall's
+    plane (within 1e-5 of the scene's size): the loader cuts the wall
+    behind it (one surface counts once), so the panel's back faces out of
+    the room: it gathers nothing but at the panel's edge, B = E there, as
+    in the path tracer."""
     rho = 0.5
     b = GltfBuilder()
     m = b.material("furnace", (rho,) * 3, emission=(1 / np.pi,) * 3)  # radiance 1 / pi: E = 1
@@ -163,10 +167,17 @@ def test_slivers_and_near_coincident_triangles_in_a_furnace(tmp_path):
     b.save(tmp_path / "awkward.glb")
     with pytest.warns(UserWarning, match="degenerate"):
         scene = load_scene(tmp_path / "awkward.glb")
+    assert any("overlapping part out of 6 coplanar triangles" in w for w in scene.warnings)
     sol = solve(scene, solver_config("default", resolution=16, photons=1_000_000, radius=5, tolerance=1e-5))
     b_rel = sol.radiosity[:, 0] * (1 - rho)
+    v = sol.voxels
+    back = (v.normal[:, 2] < -0.99) & (v.centroid[:, 2] < 0.01)  # the panel's back, facing out of the room
+    # E itself (0.5 here) where they see nothing; up to 0.62 measured at the panel's edge, where the
+    # wall's remaining pieces share their cells; never beyond the furnace's own value
+    assert back.sum() > 0 and b_rel[back].min() > 0.49 and b_rel[back].max() < 1.02
+    b_rel = b_rel[~back]
     assert np.isfinite(b_rel).all() and b_rel.min() > 0.6  # measured: min 0.75 (a voxel at the sliver)
-    assert abs(area_mean(sol, b_rel) - 1) < 0.02
+    assert abs(np.sum(b_rel * v.area[~back]) / v.area[~back].sum() - 1) < 0.02
     assert np.mean(np.abs(b_rel - 1) < 0.05) > 0.95
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import SceneError, VoxgiWarning
 from .model import Scene, Sky, make_material
+from .overlaps import cut_overlaps
 
 FORMATS = (".glb", ".gltf", ".obj", ".ply")
 
@@ -119,6 +120,16 @@ def _validate(path, vertices, triangles, material_ids, materials, normals=None, 
         notes.append(f"{path}: dropped {n} duplicate triangle{'s' * (n != 1)} (the same corners, in the same "
                      f"order, as another: one surface counts once)")
         triangles, material_ids = triangles[~duplicate], material_ids[~duplicate]
+    emits = np.array([max(m.emission) > 0 for m in materials], bool)
+    two_sided = np.array([m.double_sided for m in materials], bool)
+    vertices, triangles, material_ids, normals, uvs, (n_cut, cut_area) = cut_overlaps(
+        vertices, triangles, material_ids, emits, two_sided,
+        None if normals is None else np.asarray(normals, np.float64),
+        None if uvs is None else np.asarray(uvs, np.float64))
+    if n_cut:
+        notes.append(f"{path}: cut the overlapping part out of {n_cut} coplanar triangle{'s' * (n_cut != 1)} "
+                     f"({cut_area:.4g} scene units^2, covered by another facing the same way: one surface counts "
+                     f"once)")
     scene = Scene(vertices=vertices.astype(np.float32), triangles=triangles.astype(np.int32),
                   material_ids=material_ids.astype(np.int32), materials=tuple(materials),
                   normals=None if normals is None else np.asarray(normals, np.float32),

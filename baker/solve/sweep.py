@@ -53,9 +53,9 @@ from ..startup import checkpoint
 from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_DEFER, R_NEXT,
                       R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, SHEET_FLAT, T_HEAD, T_KEY,
                       T_LAST, T_STAMP, flush_hits, unlink)
-from .visibility import (CHECK, GATHER, WAIT, above_deferred, below_deferred, convex_edge, defer, deferred_t, defers,
-                         front_check, front_min, front_outcome, hits_back, in_front, order_cell, passes_parallel,
-                         sheet_convex_edge)
+from .visibility import (CHECK, GATHER, WAIT, above_deferred, back_beyond_cut, below_deferred, convex_edge, defer,
+                         deferred_t, defers, front_check, front_min, front_outcome, hits_back, in_front, order_cell,
+                         passes_parallel, sheet_convex_edge)
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
 AHEAD_HEAD = 16   # ... its first waiting record
@@ -232,6 +232,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 # y turns its back: waiting voxels that hit it leave, then y joins the list
                 ny0, ny1, ny2 = float(pos[yr + P_NX]), float(pos[yr + P_NY]), float(pos[yr + P_NZ])
                 cy0, cy1, cy2 = float(pos[yr + P_X]), float(pos[yr + P_Y]), float(pos[yr + P_Z])
+                ycut = pos[yr + P_CUT] != 0.0
                 z_known = False
                 z_edge = False
                 low = 0.0  # a lower bound of (c_x - c_y).n_y over the list once y joins it
@@ -262,7 +263,13 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                         ex = (cy0 - float(recf[jr + R_X])) * float(recf[jr + R_NX]) + \
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
-                    if hits_back(d, ex, z_edge, tau, kappa):
+                    gone = hits_back(d, ex, z_edge, tau, kappa)
+                    if gone:
+                        xe = np.int64(rec[jr + R_VOXEL])
+                        if (xe < 0 or ycut) and back_beyond_cut(pos_all, xe if xe >= 0 else -xe - 1, xe < 0, pos2, y,
+                                                                ycut, cutp, tau, ux, uy, uz):
+                            gone = False  # beyond a surface x's ray moves away from: x keeps waiting
+                    if gone:
                         pv = np.int64(rec[jr + R_DEFER])
                         if pv != EMPTY and above_deferred(pos_all, pv, cy0, cy1, cy2, tau):
                             # x's ray hits y's back before the plane it deferred its gather on: nothing

@@ -156,15 +156,27 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
         # away from a, it hides a from a waiting voxel a; a waiting voxel b on it leaves a behind
         # its own plane (the floor under a box, met after the box's side on a line a cell thick):
         # b's ray moves away from a, b keeps waiting
+        if a_waits and abs(sa) > tau_h and (nx * ux + ny * uy + nz * uz) * sign >= 0.0:
+            # a's ray runs along or away from the surface b lies on: it passes b, either face (on
+            # the line only because the line is a cell thick; a scan's base beside a floor piece)
+            return AWAY
         facing = float(pb[b, P_NX]) * nx + float(pb[b, P_NY]) * ny + float(pb[b, P_NZ]) * nz
         if facing * sign < FACES_AWAY:
             return HIDES if a_waits else AWAY
         return CLEAR
     if sb * sign >= -tau_h or sa == sb:
         return CLEAR
-    # the waiting voxel's ray heads for the plane from its side: the surface is in its way
+    # the waiting voxel's ray heads for the plane from its side and meets it before it comes level
+    # with the other voxel: the surface is in its way. A ray that meets the plane only further on
+    # passes the other voxel on its own side (a curved surface's plane, met at a grazing angle).
     side = sign if a_waits else -sign
-    way = HIDES if (nx * ux + ny * uy + nz * uz) * side < 0.0 else AWAY
+    nu = nx * ux + ny * uy + nz * uz
+    way = AWAY
+    if nu * side < 0.0:
+        sw, ahead = (sa, (b0 - a0) * ux + (b1 - a1) * uy + (b2 - a2) * uz) if a_waits else \
+            (sb, (a0 - b0) * ux + (a1 - b1) * uy + (a2 - b2) * uz)
+        if -sw / nu <= ahead + tau_h:
+            way = HIDES
     if pb[b, P_CUT] != 0.0:
         jb = cut_row(pb, b)
         dot = nx * cutp[jb, C_NX] + ny * cutp[jb, C_NY] + nz * cutp[jb, C_NZ]
@@ -286,14 +298,38 @@ def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, 
     if xcut or ycut:
         if d < 0.0 and xcut and cut_by(px, x, pos, y, cutp, tau_h):
             return HIDES
-        for k in range(2):
-            c = cut_between(pos, y, px, x, cutp, tau_h, ux, uy, uz, False) if k == 0 else \
-                cut_between(px, x, pos, y, cutp, tau_h, ux, uy, uz, True)
-            if c == HIDES:
-                return HIDES
-            if c == AWAY:
-                out = AWAY
+        c = cuts_between(px, x, pos, y, cutp, tau_h, ux, uy, uz)
+        if c != CLEAR:
+            return c
     return out
+
+
+@njit(cache=True)
+def cuts_between(px, x, pos, y, cutp, tau_h, ux, uy, uz):
+    """A surface that cut y's or x's pieces between them (`cut_between`
+    both ways, x waiting): HIDES if either is in x's ray's way, else AWAY
+    if either stands between, else CLEAR."""
+    out = CLEAR
+    for k in range(2):
+        c = cut_between(pos, y, px, x, cutp, tau_h, ux, uy, uz, False) if k == 0 else \
+            cut_between(px, x, pos, y, cutp, tau_h, ux, uy, uz, True)
+        if c == HIDES:
+            return HIDES
+        if c == AWAY:
+            out = AWAY
+    return out
+
+
+@njit(cache=True)
+def back_beyond_cut(px, x, xcut, pos, y, ycut, cutp, tau_h, ux, uy, uz):
+    """x's ray would hit the back of y, but a surface that cut x's or y's
+    pieces stands between them and x's ray moves away from it (AWAY, and
+    no such surface in the ray's way): the back lies on that surface's
+    other side, out of the ray's reach, as a face of y would be (`hidden`):
+    x keeps waiting. (A floor piece beside a scan's base, cut by the
+    scan's plane: the scan's sheet in its cell, beyond that plane, faces
+    the ray with one face and turns its back with the other.)"""
+    return (xcut or ycut) and cuts_between(px, x, pos, y, cutp, tau_h, ux, uy, uz) == AWAY
 
 
 @njit(cache=True)
