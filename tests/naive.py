@@ -129,7 +129,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
                     if not (inside and dot(p - centroid[y], normal[y]) * dot(centroid[q] - centroid[y], normal[y]) > 0):
                         return 0
-                    return 1 if dot(normal[q], u) * sx < 0 else 2  # x's ray heads for q's plane, or moves away
+                    nu = dot(normal[q], u)  # x's ray heads for q's plane, meeting it before level with y
+                    return 1 if nu * sx < 0 and -sx / nu <= dot(centroid[y] - centroid[x], u) + tau * h else 2
                 waiting, last = [], None
                 passed = {}  # waiting voxel -> the last voxel parallel to the line it passed, beyond tau of its plane
                 met = {}       # voxel -> the voxel its ray met (a deferred gather while it waits)

@@ -80,9 +80,10 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
     centroid to y's crosses that plane within SEGMENT_REACH of y's cell, on
     the side of y's plane where q's piece is, and x's ray (along u) heads
     for that plane: a surface crossing the cell (a wall standing on a
-    floor) is in the way. AWAY when such planes are there but x's ray moves
-    away from (or along) each of them: it never reaches their other side.
-    Else CLEAR."""
+    floor) is in the way, provided the ray meets that plane before it comes
+    level with y. AWAY when such planes are there but x's ray moves away
+    from (or along) each of them, or meets them only beyond y: it never
+    reaches their other side where y is. Else CLEAR."""
     out = CLEAR
     for i in range(m):
         e = buf[i]
@@ -111,7 +112,11 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
                 qside = (float(pos[q, P_X]) - y0) * n0 + (float(pos[q, P_Y]) - y1) * n1 + \
                     (float(pos[q, P_Z]) - y2) * n2
                 if pside * qside > 0.0:
-                    if (float(pos[q, P_NX]) * ux + float(pos[q, P_NY]) * uy + float(pos[q, P_NZ]) * uz) * sx < 0.0:
+                    # x's ray heads for q's plane and meets it before it comes level with y: in its
+                    # way; a ray meeting it only further on passes y on its own side (q a curved
+                    # surface's piece, its plane met at a grazing angle)
+                    nu = float(pos[q, P_NX]) * ux + float(pos[q, P_NY]) * uy + float(pos[q, P_NZ]) * uz
+                    if nu * sx < 0.0 and -sx / nu <= (y0 - x0) * ux + (y1 - x1) * uy + (y2 - x2) * uz + tau_h:
                         return HIDES
                     out = AWAY
     return out
