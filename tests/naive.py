@@ -64,7 +64,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
     the kernel's CUT_REACH = 3 cells). sheet (n,) bool: a face of a
     two-sided sheet (ties -1 first; never sees its sheet's back). flat (n,)
     bool: a voxel on a flat stretch of surface (a grazing ray's gather on it
-    is deferred, over up to 3 cells, to the voxel of its plane the line
+    is deferred, over up to 8 cells, to the voxel of its plane the line
     meets nearest where the ray meets it).
     Returns (gathered (n, 3), S (n,));
     with trace=x, also the list of (family, sign, source voxel) voxel x
@@ -200,7 +200,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                 above = d + ty * o
                                 val = y
                                 if flat[y] and above > tau * h + 1e-5 * h and above > -o * 0.5 * h + 1e-5 * h and \
-                                        above < -o * 3.0 * h - 1e-5 * h:
+                                        above < -o * 8.0 * h - 1e-5 * h:
                                     keep.append(x)  # deferred: the ray meets y's plane further on
                                     val = defer(x, y, d, o)
                                 elif x in deferred and ty > plane_t(x, deferred[x]) + 1.0 * h:

@@ -63,7 +63,7 @@ OWN_BACK_COS = -0.5    # a sheet face within kappa of a waiting sheet face, faci
 #                        into different facings: their normals can be 30-60 degrees off opposite)
 DEFER = 0.5           # cells along the ray beyond a flat voxel where the ray meets its plane: beyond this, the gather
 #                       is deferred (`defers`) to the voxel of that plane where the ray meets it
-DEFER_MAX = 3.0       # cells: ... and under this (a gather deferred further would keep its voxel waiting, tested
+DEFER_MAX = 8.0       # cells: ... and under this (a gather deferred further would keep its voxel waiting, tested
 #                       at every voxel the line meets, for as many cells: a bounce's cost would grow with the
 #                       grazing rays' length, not stay O(voxels x directions))
 DEFER_TIE = 1e-5      # cells: the deferral's tests clear their bounds by this (grid-aligned scenes put the ray's
