@@ -126,8 +126,9 @@ def test_box_foot_gathers_the_floor_where_its_rays_meet_it(cornell):
     contact shadow at once. Measured over the row's 27 voxels, at 64 cells
     (preview, r = 4): 0.23 of the continuous gather before the deferral
     over flat surfaces, the cut-floor clause and the convex-corner marking
-    (cells.separating_planes), 0.92 after (default, r = 8: 0.25 and 0.90);
-    the worst voxel 0.66 (it was 0). Without the corner marking: 0.73, the
+    (cells.separating_planes), 0.92 after (default, r = 8: 0.25 and 0.90;
+    0.97 since the deferral reaches 8 cells, not 3); the worst voxel 0.66
+    (it was 0). Without the corner marking: 0.73, the
     corner voxel near 0 (its piece took the side's plane as a surface
     standing across its cell). Bound: 0.8-1.1."""
     import numpy as np
