@@ -230,19 +230,20 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
         return vertices, triangles, material_ids, normals, uvs, (0, 0.0)
     sort = np.argsort(b, kind="stable")
     a, b = a[sort], b[sort]
-    cut_tris = np.unique(b)
+    cut_tris, first = np.unique(b, return_index=True)
+    last = np.append(first[1:], len(b))  # b sorted: triangle cut_tris[i]'s coverers are a[first[i]:last[i]]
     new_v, new_n, new_uv, new_t, new_m = [], [], [], [], []
-    nv = len(vertices)
+    base = len(vertices)  # index of the next new corner
     removed = 0.0
     drop = np.zeros(nt, bool)
-    for t in cut_tris:
+    for t, lo, hi in zip(cut_tris, first, last):
         tri_uv = uv[t]
         polys = [tri_uv.copy()]
-        for s in a[b == t]:
+        for s in a[lo:hi]:
             polys = [q for p in polys for q in _subtract(p, uv[s])]
-        area = abs(polygon_area(tri_uv[:, 0].copy(), tri_uv[:, 1].copy(), 3))
-        polys = [p for p in polys if abs(polygon_area(p[:, 0].copy(), p[:, 1].copy(), len(p))) > SLIVER_FRAC * area]
-        kept = sum(abs(polygon_area(p[:, 0].copy(), p[:, 1].copy(), len(p))) for p in polys)
+        area = _area2(tri_uv)
+        polys = [p for p in polys if _area2(p) > SLIVER_FRAC * area]
+        kept = sum(_area2(p) for p in polys)
         removed += (area - kept) / max(area, 1e-300) * _area3(corners[t])
         drop[t] = True
         # barycentric coordinates in the (projected) triangle: affine, so exact on its plane
@@ -254,7 +255,6 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
         for p in polys:
             w12 = (p - t0) @ inv.T
             w = np.column_stack([1 - w12.sum(axis=1), w12])
-            base = nv + sum(len(x) for x in new_v)
             new_v.append(w @ vertices[src].astype(np.float64))
             if normals is not None:
                 nn = w @ normals[src].astype(np.float64)
@@ -267,6 +267,7 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
                 fan = fan[:, [0, 2, 1]]
             new_t.append(fan)
             new_m.append(np.full(len(fan), material_ids[t]))
+            base += k
     keep = ~drop
     vertices = np.concatenate([vertices] + new_v) if new_v else vertices
     if normals is not None and new_n:
@@ -276,6 +277,11 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
     triangles = np.concatenate([triangles[keep]] + new_t) if new_t else triangles[keep]
     material_ids = np.concatenate([material_ids[keep]] + new_m) if new_m else material_ids[keep]
     return vertices, triangles, material_ids, normals, uvs, (len(cut_tris), float(removed))
+
+
+def _area2(p):
+    """Area of a convex polygon (k, 2)."""
+    return abs(polygon_area(p[:, 0].copy(), p[:, 1].copy(), len(p)))
 
 
 def _area3(c):
