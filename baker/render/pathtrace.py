@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
+from ..kernels.inline import borrowed, inlined
 from ..kernels.rng import STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
 from ..kernels.sobol import sample4
@@ -41,7 +42,16 @@ MAX_DEPTH = 1000
 RR_DEPTH = 5
 
 
-@njit(cache=True)
+# The kernels a path vertex calls, inlined into the one loop that calls them
+# (kernels/inline.py: a call would pass the BVH's or the surface tables'
+# arrays one by one and count references to each)
+_closest_hit, _any_hit = inlined(closest_hit), inlined(any_hit)
+_albedo_at, _emitter_point, _punctual_irradiance = inlined(albedo_at), inlined(emitter_point), inlined(punctual_irradiance)
+_sky_radiance, _triangle_normal = inlined(sky_radiance), inlined(triangle_normal)
+_cosine_hemisphere = inlined(cosine_hemisphere)
+
+
+@njit(cache=True, inline="always")
 def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz, l1, l2):
     """Radiance (r, g, b) arriving at o from direction -d, sample `index` of
     `pixel`'s sequences; and whether the ray's first hit is an emitter.
@@ -49,7 +59,9 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     the camera ray's, group 0). The vertex at depth k draws its next
     direction together with the next vertex's emitter point, group k + 1:
     a direction and the light seen from where it leads are stratified
-    jointly."""
+    jointly. Direct light at a vertex is one shadow query per light: the
+    emitter point first, then each punctual light (one any-hit call site,
+    so one inlined copy)."""
     tri_index = bvh.tri_index
     mat_of, emission, double = surf.tri_material, surf.emission, surf.double_sided
     n_emitters = surf.emitters.shape[0]
@@ -60,10 +72,10 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     saw_emitter = False
     roulette = mix64(np.uint64(seed) ^ mix64(np.uint64(pixel) + np.uint64(STREAM_ROULETTE)))
     for depth in range(MAX_DEPTH):
-        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        t, j, u, v = _closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:
             # escaped: the sky, if any (found by direction sampling only: no MIS weight needed)
-            sr, sg, sb = sky_radiance(surf, dx, dy, dz)
+            sr, sg, sb = _sky_radiance(surf, dx, dy, dz)
             lr += tr * sr
             lg += tg * sg
             lb += tb * sb
@@ -86,44 +98,53 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
             lr += tr * er * w
             lg += tg * eg * w
             lb += tb * eb * w
-        ar, ag, ab = albedo_at(surf, tri, u, v)
+        ar, ag, ab = _albedo_at(surf, tri, u, v)
         if ar <= 0.0 and ag <= 0.0 and ab <= 0.0:
             break
         px = ox + t * dx + eps * nx
         py = oy + t * dy + eps * ny
         pz = oz + t * dz + eps * nz
-        # next-event estimation on the area emitters
-        if n_emitters > 0:
-            ltri, qx, qy, qz, p_tri = emitter_point(surf, l1, l2)
-            wx, wy, wz = qx - px, qy - py, qz - pz
-            d2 = wx * wx + wy * wy + wz * wz
-            dist = math.sqrt(d2)
-            wx, wy, wz = wx / dist, wy / dist, wz / dist
-            cos_x = nx * wx + ny * wy + nz * wz
-            mx, my, mz = triangle_normal(surf.corners, ltri)
-            cos_l = -(mx * wx + my * wy + mz * wz)
-            lmat = mat_of[ltri]
-            if double[lmat]:
-                cos_l = abs(cos_l)
-            if cos_x > 0.0 and cos_l > 0.0 and not any_hit(bvh, stack, px, py, pz, wx, wy, wz, 0.0, dist * (1.0 - 1e-7)
-                                                              - eps):
+        # direct light: query 0 the area emitters (next-event estimation,
+        # MIS-weighted), then every punctual light (deterministic)
+        for light in range(n_lights + 1):
+            if light == 0:
+                if n_emitters == 0:
+                    continue
+                ltri, qx, qy, qz, p_tri = _emitter_point(surf, l1, l2)
+                wx, wy, wz = qx - px, qy - py, qz - pz
+                d2 = wx * wx + wy * wy + wz * wz
+                dist = math.sqrt(d2)
+                wx, wy, wz = wx / dist, wy / dist, wz / dist
+                cos_x = nx * wx + ny * wy + nz * wz
+                mx, my, mz = _triangle_normal(surf.corners, ltri)
+                cos_l = -(mx * wx + my * wy + mz * wz)
+                lmat = mat_of[ltri]
+                if double[lmat]:
+                    cos_l = abs(cos_l)
+                if cos_x <= 0.0 or cos_l <= 0.0:
+                    continue
                 pdf_light = p_tri / surf.tri_area[ltri] * d2 / cos_l
                 pb = cos_x / math.pi
                 w = pdf_light * pdf_light / (pdf_light * pdf_light + pb * pb)
                 f = cos_x / math.pi / pdf_light * w
-                lr += tr * ar * emission[lmat, 0] * f
-                lg += tg * ag * emission[lmat, 1] * f
-                lb += tb * ab * emission[lmat, 2] * f
-        # punctual lights: all of them, deterministic
-        for i in range(n_lights):
-            hr, hg, hb, sx, sy, sz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)
-            if (hr > 0.0 or hg > 0.0 or hb > 0.0) and not any_hit(bvh, stack, px, py, pz, sx, sy, sz, 0.0, dist):
-                lr += tr * ar / math.pi * hr
-                lg += tg * ag / math.pi * hg
-                lb += tb * ab / math.pi * hb
+                cr = tr * ar * emission[lmat, 0] * f
+                cg = tg * ag * emission[lmat, 1] * f
+                cb = tb * ab * emission[lmat, 2] * f
+                reach = dist * (1.0 - 1e-7) - eps
+            else:
+                hr, hg, hb, wx, wy, wz, reach = _punctual_irradiance(surf, light - 1, px, py, pz, nx, ny, nz)
+                if hr <= 0.0 and hg <= 0.0 and hb <= 0.0:
+                    continue
+                cr = tr * ar / math.pi * hr
+                cg = tg * ag / math.pi * hg
+                cb = tb * ab / math.pi * hb
+            if not _any_hit(bvh, stack, px, py, pz, wx, wy, wz, 0.0, reach):
+                lr += cr
+                lg += cg
+                lb += cb
         # continue the path: cosine sampling, f cos / pdf = albedo
         u1, u2, l1, l2 = sample4(seed, pixel, index, depth + 1)
-        dx, dy, dz, cos = cosine_hemisphere(u1, u2, nx, ny, nz)
+        dx, dy, dz, cos = _cosine_hemisphere(u1, u2, nx, ny, nz)
         if cos <= 0.0:
             break
         pdf_bsdf = cos / math.pi
@@ -137,32 +158,54 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     return lr, lg, lb, saw_emitter
 
 
+@njit(cache=True)
+def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height, origins, dirs):
+    """Sums over samples s0..s1-1 of `pixel`'s paths: (r, g, b, n), n the
+    samples whose first hit is an emitter. Each sample's camera ray goes
+    through pixel (x, y) of `cam`, placed in it by the sample's first pair;
+    or, when `origins` is not empty, every sample starts on ray `pixel`
+    (origins[pixel], dirs[pixel])."""
+    bvh, surf = borrowed(bvh), borrowed(surf)
+    sr, sg, sb, lamp = 0.0, 0.0, 0.0, 0
+    for s in range(s0, s1):
+        jx, jy, l1, l2 = sample4(seed, pixel, s, 0)
+        if origins.shape[0] == 0:
+            ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, jx, jy, width, height)
+        else:
+            ox, oy, oz = origins[pixel, 0], origins[pixel, 1], origins[pixel, 2]
+            dx, dy, dz = dirs[pixel, 0], dirs[pixel, 1], dirs[pixel, 2]
+        r, g, b, hit = trace_path(bvh, surf, stack, eps, seed, pixel, s, ox, oy, oz, dx, dy, dz, l1, l2)
+        sr += r
+        sg += g
+        sb += b
+        if hit:
+            lamp += 1
+    return sr, sg, sb, lamp
+
+
 @njit(cache=True, parallel=True)
-def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp):
+def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp, origins, dirs):
     """Samples s0..s1-1 of every pixel of rows row0..row1-1, summed into
     `acc` (float64); lamp counts the samples whose camera ray meets an
-    emitter first."""
+    emitter first. With `origins` and `dirs` not empty, (n, 3) each, pixel
+    (x, 0) of a width-n row takes ray x instead of a camera ray. The one
+    kernel that runs trace_path, so the path loop (and the kernels it
+    inlines) compiles once."""
     n = (row1 - row0) * width
     for k in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
         y = row0 + k // width
         x = k % width
         pixel = y * width + x
-        sr, sg, sb = 0.0, 0.0, 0.0
-        for s in range(s0, s1):
-            jx, jy, l1, l2 = sample4(seed, pixel, s, 0)
-            ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, jx, jy, width, height)
-            r, g, b, hit = trace_path(bvh, surf, stack, eps, seed, pixel, s, ox, oy, oz, dx, dy, dz, l1, l2)
-            sr += r
-            sg += g
-            sb += b
-            if hit:
-                lamp[y, x] += 1
+        sr, sg, sb, hits = trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height,
+                                         origins, dirs)
+        lamp[y, x] += hits
         acc[y, x, 0] += sr
         acc[y, x, 1] += sg
         acc[y, x, 2] += sb
 
 
+NO_RAYS = np.empty((0, 3))
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 BAND_SAMPLES = 1 << 18  # camera samples per band: a fraction of a second, so Ctrl-C and the bar respond
 
@@ -229,7 +272,7 @@ def pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, time_
         ts = time.perf_counter()
         for r0 in range(0, height, band):
             r1 = min(height, r0 + band)
-            _accumulate_rows(*args, done, done + step, width, height, r0, r1, last, lamp)
+            _accumulate_rows(*args, done, done + step, width, height, r0, r1, last, lamp, NO_RAYS, NO_RAYS)
             if progress is not None:
                 progress((r1 - r0) * width * step)
         rate = (time.perf_counter() - ts) / (width * height * step)
@@ -253,19 +296,11 @@ def render_pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0
     return pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed, progress=rows).image
 
 
-@njit(cache=True, parallel=True)
 def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs):
     """Mean radiance over spp paths for each (origin, direction) ray: (n, 3)
     float64. Ray i takes the sequences of pixel i."""
     n = origins.shape[0]
-    out = np.zeros((n, 3))
-    for i in prange(n):
-        stack = np.empty(STACK_SIZE, np.int32)
-        for s in range(spp):
-            _, _, l1, l2 = sample4(seed, i, s, 0)
-            r, g, b, _ = trace_path(bvh, surf, stack, eps, seed, i, s, origins[i, 0], origins[i, 1], origins[i, 2],
-                                    dirs[i, 0], dirs[i, 1], dirs[i, 2], l1, l2)
-            out[i, 0] += r
-            out[i, 1] += g
-            out[i, 2] += b
-    return out / spp
+    acc = np.zeros((1, n, 3))
+    _accumulate_rows(bvh, surf, np.zeros((4, 3)), eps, seed, 0, spp, n, 1, 0, 1, acc, np.zeros((1, n), np.int32),
+                     np.ascontiguousarray(origins, np.float64), np.ascontiguousarray(dirs, np.float64))
+    return acc[0] / spp
