@@ -34,8 +34,8 @@ from ..kernels.inline import borrowed, inlined
 from ..kernels.rng import STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
 from ..kernels.sobol import sample4
-from ..kernels.traverse import any_hit, closest_hit, hit_normal
-from ..scene.surfaces import albedo_at, emitter_point, punctual_irradiance, sky_radiance, triangle_normal
+from ..kernels.traverse import any_hit, closest_hit
+from ..scene.surfaces import albedo_at, emitter_point, punctual_irradiance, sky_radiance
 from .camera import primary_ray
 
 MAX_DEPTH = 1000
@@ -47,8 +47,7 @@ RR_DEPTH = 5
 # arrays one by one and count references to each)
 _closest_hit, _any_hit = inlined(closest_hit), inlined(any_hit)
 _albedo_at, _emitter_point, _punctual_irradiance = inlined(albedo_at), inlined(emitter_point), inlined(punctual_irradiance)
-_sky_radiance, _triangle_normal = inlined(sky_radiance), inlined(triangle_normal)
-_cosine_hemisphere = inlined(cosine_hemisphere)
+_sky_radiance, _cosine_hemisphere = inlined(sky_radiance), inlined(cosine_hemisphere)
 
 
 @njit(cache=True, inline="always")
@@ -63,7 +62,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     emitter point first, then each punctual light (one any-hit call site,
     so one inlined copy)."""
     tri_index = bvh.tri_index
-    mat_of, emission, double = surf.tri_material, surf.emission, surf.double_sided
+    mat_of, emission, double, normal = surf.tri_material, surf.emission, surf.double_sided, surf.tri_normal
     n_emitters = surf.emitters.shape[0]
     n_lights = surf.light_kind.shape[0]
     lr, lg, lb = 0.0, 0.0, 0.0
@@ -81,7 +80,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
             lb += tb * sb
             break
         tri = tri_index[j]
-        nx, ny, nz = hit_normal(bvh, j)
+        nx, ny, nz = normal[tri, 0], normal[tri, 1], normal[tri, 2]
         cos_in = -(nx * dx + ny * dy + nz * dz)
         mat = mat_of[tri]
         if cos_in < 0.0:
@@ -116,7 +115,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
                 dist = math.sqrt(d2)
                 wx, wy, wz = wx / dist, wy / dist, wz / dist
                 cos_x = nx * wx + ny * wy + nz * wz
-                mx, my, mz = _triangle_normal(surf.corners, ltri)
+                mx, my, mz = normal[ltri, 0], normal[ltri, 1], normal[ltri, 2]
                 cos_l = -(mx * wx + my * wy + mz * wz)
                 lmat = mat_of[ltri]
                 if double[lmat]:
@@ -158,14 +157,15 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     return lr, lg, lb, saw_emitter
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height, origins, dirs):
     """Sums over samples s0..s1-1 of `pixel`'s paths: (r, g, b, n), n the
     samples whose first hit is an emitter. Each sample's camera ray goes
     through pixel (x, y) of `cam`, placed in it by the sample's first pair;
     or, when `origins` is not empty, every sample starts on ray `pixel`
     (origins[pixel], dirs[pixel])."""
-    bvh, surf = borrowed(bvh), borrowed(surf)
+    bvh, surf, stack, cam = borrowed(bvh), borrowed(surf), borrowed(stack), borrowed(cam)
+    origins, dirs = borrowed(origins), borrowed(dirs)
     sr, sg, sb, lamp = 0.0, 0.0, 0.0, 0
     for s in range(s0, s1):
         jx, jy, l1, l2 = sample4(seed, pixel, s, 0)
@@ -183,6 +183,16 @@ def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, 
     return sr, sg, sb, lamp
 
 
+@njit(cache=True)
+def _coprime_stride(n):
+    """A stride near 0.618 n with no factor in common with n: i -> i stride
+    mod n visits 0..n-1 once each, neighbours far apart."""
+    s = max(1, int(0.618 * n))
+    while math.gcd(s, n) != 1:
+        s += 1
+    return s
+
+
 @njit(cache=True, parallel=True)
 def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp, origins, dirs):
     """Samples s0..s1-1 of every pixel of rows row0..row1-1, summed into
@@ -191,10 +201,12 @@ def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row
     (x, 0) of a width-n row takes ray x instead of a camera ray. The one
     kernel that runs trace_path, so the path loop (and the kernels it
     inlines) compiles once."""
-    n = (row1 - row0) * width
+    rows = row1 - row0
+    stride = _coprime_stride(rows)
+    n = rows * width
     for k in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
-        y = row0 + k // width
+        y = row0 + (k // width) * stride % rows  # rows dealt out of order: each thread's share spans the image
         x = k % width
         pixel = y * width + x
         sr, sg, sb, hits = trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height,

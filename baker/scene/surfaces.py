@@ -36,6 +36,7 @@ SurfaceArrays = namedtuple("SurfaceArrays", [
     "double_sided",     # (nm,) bool
     "corners",          # (nt, 3, 3) float64 triangle corners
     "tri_area",         # (nt,) float64
+    "tri_normal",       # (nt, 3) float64 unit normal, front by the winding (triangle_normal of corners)
     "emitters",         # (ne,) int32 triangles that emit
     "emitter_cdf",      # (ne,) float64 cumulative emitted power over `emitters` (inclusive)
     "emitter_prob",     # (nt,) float64 probability of drawing each triangle by power (0: not an emitter)
@@ -99,7 +100,8 @@ def pack(scene) -> Surfaces:
     sky_mode = SKY_NONE if sky is None else (SKY_HEMISPHERE if sky.hemisphere else SKY_SPHERE)
     arrays = SurfaceArrays(
         tri_material=mids.astype(np.int32), albedo=scene.albedo.astype(np.float64), emission=emission,
-        double_sided=scene.double_sided, corners=np.ascontiguousarray(corners), tri_area=area, emitters=emitters,
+        double_sided=scene.double_sided, corners=np.ascontiguousarray(corners), tri_area=area,
+        tri_normal=_unit_normals(corners), emitters=emitters,
         emitter_cdf=cdf.astype(np.float64), emitter_prob=prob, tex_offset=tex_offset, tex_size=tex_size,
         tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
         light_kind=np.array([KIND_CODE[l.kind] for l in lights], np.int32),
@@ -111,6 +113,14 @@ def pack(scene) -> Surfaces:
         sky_radiance=np.zeros(3) if sky is None else np.asarray(sky.radiance, np.float64).reshape(3),
         sky_mode=sky_mode, sky_up=UP.astype(np.float64))
     return Surfaces(arrays, power.sum(axis=0), float(np.abs(scene.vertices).max()) or 1.0)
+
+
+def _unit_normals(corners):
+    """(nt, 3) float64 unit normals by the winding, the formula of
+    kernels/geometry.unit_cross; a zero vector for a degenerate triangle."""
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.ascontiguousarray(np.divide(n, length, out=np.zeros_like(n), where=length > 0))
 
 
 @njit(cache=True)
