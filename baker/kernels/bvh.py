@@ -33,7 +33,7 @@ BVHArrays = namedtuple("BVHArrays", [
     "wide",        # (nw, 64) float32 8-wide nodes, one 256-byte record each (WIDE_* below); node 0 is the root
     "wide_i",      # the same memory read as int32 (the child and count slots)
     "root_box",    # (6,) float64
-    "tris",        # (nt, 9) float32 corners v0 v1 v2 in BVH order
+    "tris",        # (nt, 9) float64 corners v0 v1 v2 in BVH order (float32 values)
     "tri_index",   # (nt,) int32 BVH order -> scene triangle
 ])
 
@@ -252,8 +252,7 @@ def pack_nodes(lo, hi, right, count):
 
 @njit(cache=True)
 def reorder_triangles(corners, order):
-    """(nt, 9) corners v0 v1 v2 in BVH order (float64; stored as float32,
-    which is exact for float32 scene vertices)."""
+    """(nt, 9) corners v0 v1 v2 in BVH order (float64)."""
     nt = order.shape[0]
     out = np.empty((nt, 9))
     for i in range(nt):
