@@ -163,7 +163,8 @@ def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, 
     samples whose first hit is an emitter. Each sample's camera ray goes
     through pixel (x, y) of `cam`, placed in it by the sample's first pair;
     or, when `origins` is not empty, every sample starts on ray `pixel`
-    (origins[pixel], dirs[pixel])."""
+    (origins[pixel], dirs[pixel]). Its arguments are borrowed (no reference
+    counts in the loop; kernels/inline.py); the caller holds them."""
     bvh, surf, stack, cam = borrowed(bvh), borrowed(surf), borrowed(stack), borrowed(cam)
     origins, dirs = borrowed(origins), borrowed(dirs)
     sr, sg, sb, lamp = 0.0, 0.0, 0.0, 0
@@ -198,9 +199,9 @@ def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row
     """Samples s0..s1-1 of every pixel of rows row0..row1-1, summed into
     `acc` (float64); lamp counts the samples whose camera ray meets an
     emitter first. With `origins` and `dirs` not empty, (n, 3) each, pixel
-    (x, 0) of a width-n row takes ray x instead of a camera ray. The one
-    kernel that runs trace_path, so the path loop (and the kernels it
-    inlines) compiles once."""
+    (x, 0) of a width-n row takes ray x instead of a camera ray
+    (radiance_batch). The one caller of trace_samples, so the path loop
+    and the kernels it inlines compile once."""
     rows = row1 - row0
     stride = _coprime_stride(rows)
     n = rows * width
