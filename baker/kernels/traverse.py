@@ -80,7 +80,8 @@ def intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz):
     eu = cx * by - cy * bx
     ev = ax * cy - ay * cx
     ew = bx * ay - by * ax
-    if (eu < 0.0 or ev < 0.0 or ew < 0.0) and (eu > 0.0 or ev > 0.0 or ew > 0.0):
+    # the signs combined without short-circuits: one branch, not six (they mispredict on rejected triangles)
+    if ((eu < 0.0) | (ev < 0.0) | (ew < 0.0)) & ((eu > 0.0) | (ev > 0.0) | (ew > 0.0)):
         return np.inf, 0.0, 0.0
     det = eu + ev + ew
     if det == 0.0:
