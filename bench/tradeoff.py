@@ -116,7 +116,7 @@ def errors(img, ref, lamp, ref_noise):
     ring = grow(lamp, 2)
     rel = np.abs(a - r)[~ring] / np.maximum(r[~ring], m / 20)
     return (math.sqrt(max(mse, 0.0)) / m, float(np.percentile(rel, 95)), float(rel.max()),
-            float(compare(img, ref).worst))
+            float(compare(img, ref, lamp=lamp, lamp_rings=2).worst))
 
 
 def bake_point(scene, bvh, surf, cam, size, preset, overrides):

@@ -219,6 +219,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                         for x in waiting:
                             if dot(centroid[x] - centroid[y], normal[y]) >= -tau * h or edge_last or convex(x):
                                 stay.append(x)
+                            elif not flat[y] and dot(centroid[x] - centroid[y], normal[y]) + \
+                                    dot(centroid[y] - centroid[x], u) * o > tau * h:
+                                stay.append(x)  # level with curved y, its ray is in front of y's plane: past it
                             elif cut is not None and (lambda w: 1 not in w and 2 in w)(
                                     [cut_between(y, x, False), cut_between(x, y, True)]):
                                 stay.append(x)  # y's back lies beyond a cutting surface x's ray moves away from

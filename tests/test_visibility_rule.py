@@ -123,6 +123,29 @@ def test_convex_edge_does_not_block():
     assert s[0] == 2 and s[1] == 2
 
 
+@pytest.mark.parametrize("curved", [True, False])
+def test_ray_past_a_convex_silhouette_goes_on(curved):
+    """A voxel of a curved surface turning its back to the rays, the waiting
+    voxel behind its plane, but the waiting voxel's ray, level with it,
+    0.33 cells in front of its tangent plane: the ray crossed that plane
+    before and passes the surface by (a scan's silhouette seen by a line a
+    cell thick), so it goes on to the voxel beyond. A flat voxel in the same
+    place blocks the ray (a ray cannot pass a plane twice). Without the
+    clause the curved voxel blocks it too: a closed scan-like shell lost 2%
+    of its own light this way (tests/test_propagate.py)."""
+    vox = line(dict(x=0.5, n=PLUS),
+               dict(x=2.5, y=0.1, n=(1, 1.5, 0), flat=not curved),  # faces +x and up: the far side of a bump
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == (2 if curved else -1)
+
+
+def test_ray_behind_a_curved_back_is_blocked():
+    """The same voxel tilted the other way (faces +x and down): the ray,
+    level with it, is 0.33 cells behind its plane and meets its back."""
+    vox = line(dict(x=0.5, n=PLUS), dict(x=2.5, y=0.1, n=(1, -1.5, 0)), dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == -1
+
+
 def test_tie_puts_the_sender_first():
     """Two voxels at one centroid facing each other (a box resting on a
     floor): the one sending along the ray comes first, so it meets the

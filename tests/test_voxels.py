@@ -50,6 +50,23 @@ def test_polygons_on_cell_planes_go_to_the_normal_side(make_scene):
     assert np.allclose(v.origin[0] + v.cell[wall, 0] * v.cell_size, 0.0)
 
 
+@pytest.mark.parametrize("res", [37, 45, 59, 60, 61, 71])
+def test_walls_on_the_scene_bounds_lie_in_the_cells_they_face(make_scene, res):
+    """The grid's origin is the scene's low corner less one cell, so walls
+    there lie on a cell boundary; (lo - origin) / h rounds to 0.99999... for
+    most cell sizes, and without snapping to the boundary
+    (voxels.clip.to_grid) such a wall went to the cell outside the room."""
+    b = GltfBuilder()
+    b.mesh("room", *box((-1, 0, -1), (1, 2, 1), inward=True), b.material("wall", (0.7,) * 3))
+    v = voxelize(make_scene(b, "room_bounds"), res)
+    for axis in range(3):
+        low = v.normal[:, axis] > 0.5  # the wall at the low bound, facing into the room
+        assert low.sum() > 0
+        assert np.all(v.cell[low, axis] == 1)
+        high = v.normal[:, axis] < -0.5
+        assert np.all(v.cell[high, axis] == np.floor((2.0 - 1e-9) / v.cell_size) + 1)
+
+
 def test_one_voxel_per_cell_and_facing_and_sheets(tmp_path):
     """A floor and a box standing 0.3 cells above it (same facing, same
     cells): separate sheets. A double-sided quad gives voxels on both sides."""

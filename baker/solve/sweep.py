@@ -55,6 +55,7 @@ from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P
                       T_LAST, T_STAMP, flush_hits, unlink)
 from .visibility import (CHECK, GATHER, WAIT, above_deferred, back_beyond_cut, below_deferred, convex_edge, defer,
                          deferred_t, defers, front_check, front_min, front_outcome, hits_back, in_front, order_cell,
+                         past_silhouette,
                          passes_parallel, sheet_convex_edge)
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
@@ -264,6 +265,11 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
                     gone = hits_back(d, ex, z_edge, tau, kappa)
+                    if gone and pos[yr + P_SHEET] < SHEET_FLAT:
+                        # a curved y: x's ray, level with y, already in front of y's tangent plane has passed a
+                        # convex silhouette (visibility.past_silhouette): it keeps waiting
+                        gone = not past_silhouette(d, o, float(recf[jr + R_X]), float(recf[jr + R_Y]),
+                                                   float(recf[jr + R_Z]), cy0, cy1, cy2, ux, uy, uz, tau)
                     if gone:
                         xe = np.int64(rec[jr + R_VOXEL])
                         if (xe < 0 or ycut) and back_beyond_cut(pos_all, xe if xe >= 0 else -xe - 1, xe < 0, pos2, y,

@@ -507,3 +507,19 @@ def hits_back(d, ex, z_edge, tau_h, kappa_h):
     behind y's plane, within kappa; y behind x's plane, or within tau in
     front of it)."""
     return d < -tau_h and not z_edge and not (ex < tau_h and d >= -kappa_h)
+
+
+@njit(cache=True, inline="always")
+def past_silhouette(d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz, tau_h):
+    """y, a voxel of a curved surface, turns its back (o = n_y . s > 0) and
+    x waits behind its plane (d = (c_x - c_y) . n_y < -tau). Has x's ray
+    passed y's surface by? Yes when the ray, level with y (the point of the
+    ray nearest y's centroid along s), is in front of y's tangent plane by
+    more than tau: it crossed that plane before it came level with y. On a
+    convex surface seen from outside (a scan's silhouette) the ray is then
+    outside the surface: the line, a cell thick, meets the back of the
+    surface's far side only because it is a cell thick. A ray that hits
+    y's back is level with it at or behind the plane (a concave surface
+    seen from inside, a flat one: flat voxels never pass)."""
+    ty = (y0 - x0) * ux + (y1 - x1) * uy + (y2 - x2) * uz
+    return d + ty * o > tau_h

@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .tolerances import GRID_SNAP
+
 MAX_POLY = 16
 
 
@@ -46,12 +48,24 @@ def _column_range(g, nrm, k, i0, i1, j0, j1, ia, ja, sign):
     return int(math.ceil(lo)) - 1, int(math.ceil(hi)) - 1
 
 
+@njit(cache=True, inline="always")
+def to_grid(x, o, inv_h):
+    """Grid coordinate of scene coordinate x along an axis whose origin is o:
+    within GRID_SNAP of a cell boundary, the boundary itself (the grid's
+    origin is the scene's low corner less a cell, and (lo - (lo - h)) / h
+    rounds to 0.99999999...: a wall on the scene's bounds would fall in the
+    cell outside it, not the one it faces)."""
+    g = (x - o) * inv_h
+    r = math.floor(g + 0.5)
+    return r if abs(g - r) < GRID_SNAP else g
+
+
 @njit(cache=True)
 def _grid_corners(corners, t, origin, inv_h):
     g = np.empty((3, 3))
     for c in range(3):
         for k in range(3):
-            g[c, k] = (corners[t, c, k] - origin[k]) * inv_h
+            g[c, k] = to_grid(corners[t, c, k], origin[k], inv_h)
     return g
 
 
@@ -173,9 +187,9 @@ def piece_polygon(corners, tri, origin, inv_h, cell):
     py = np.empty(MAX_POLY)
     pz = np.empty(MAX_POLY)
     for c in range(3):
-        px[c] = (corners[tri, c, 0] - origin[0]) * inv_h
-        py[c] = (corners[tri, c, 1] - origin[1]) * inv_h
-        pz[c] = (corners[tri, c, 2] - origin[2]) * inv_h
+        px[c] = to_grid(corners[tri, c, 0], origin[0], inv_h)
+        py[c] = to_grid(corners[tri, c, 1], origin[1], inv_h)
+        pz[c] = to_grid(corners[tri, c, 2], origin[2], inv_h)
     return _clip_to_cell(px, py, pz, cell)
 
 

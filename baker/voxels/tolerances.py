@@ -21,3 +21,4 @@ FLAT_PLANE = 0.02        # cells around it (normals within 45 degrees, SMOOTH_CO
 #                          degrees) and their centroids lie within FLAT_PLANE cells of its plane: a floor, a wall, a
 #                          box's face; not a tessellated sphere or a scan (the propagation defers a grazing ray's
 #                          gather on a flat voxel to where the ray meets its plane, visibility.py)
+GRID_SNAP = 1e-6         # cells: a triangle corner this close to a cell boundary lies on it (voxels.clip.to_grid)
