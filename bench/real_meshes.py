@@ -9,10 +9,12 @@ block ratios, the share of blocks within 5%, and the lit pixels that come
 out black (where the path tracer is over a quarter of the median).
 
 Scenes: scan_room and the public Cornell box OBJ (two-sided as OBJ reads,
-and --one-sided) from scenes/, the built-in Cornell box, and any files
-given on the command line (a scanned model in a room of your own).
+and --one-sided) from scenes/, the built-in Cornell box, any files given
+on the command line (a scanned model in a room of your own), then the
+reproduction cases (scenes.generate.reproduction_case: each failure on a
+small scene of its own; --no-cases leaves them out).
 
-    python bench/real_meshes.py [--spp N] [--res N] [--preset P] [--json] [FILE ...]
+    python bench/real_meshes.py [--spp N] [--res N] [--preset P] [--no-cases] [--json] [FILE ...]
 
 The path-traced references take minutes at 4096 spp (about 0.5-1 M
 samples/s on two cores); --spp 512 gives the same picture, noisier.
@@ -51,6 +53,7 @@ def main():
     ap.add_argument("--spp", type=int, default=4096)
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--preset", default="default")
+    ap.add_argument("--no-cases", action="store_true", help="leave out the reproduction cases")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     scenes = [("scan_room", os.path.join(ROOT, "scenes", "scan_room.glb"), False),
@@ -64,6 +67,14 @@ def main():
             warnings.simplefilter("ignore", VoxgiWarning)
             scene = load_scene(path, one_sided=one)
         rows.append([name, *measure(scene, args.res, args.spp, args.preset)])
+    if not args.no_cases:
+        import tempfile
+        from scenes.generate import REPRODUCTION_CASES, reproduction_case
+        with tempfile.TemporaryDirectory() as tmp:
+            for name in REPRODUCTION_CASES:
+                path = os.path.join(tmp, name + ".glb")
+                reproduction_case(name).save(path)
+                rows.append([f"case: {name}", *measure(load_scene(path), args.res, args.spp, args.preset)])
     emit(args, f"Voxel view ({args.preset}) against the path tracer ({args.spp} spp, {args.res}x{args.res})", rows,
          ["scene", "voxels", "mean ratio", "8x8 blocks", "blocks within 5%", "black lit pixels", "solve s",
           "path tracer s"])

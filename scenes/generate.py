@@ -416,6 +416,62 @@ def scan_room(albedo=0.7, light_radiance=20.0):
     return b
 
 
+def _case_room(b, light_radiance=15.0, flush=False, look_up=False):
+    """The room of the reproduction cases: closed, 2 x 2 x 2 m, white, a
+    0.4 m square ceiling lamp (1 cm under the ceiling, or flush with it),
+    a camera at the front wall looking in and down (or up at the lamp)."""
+    w = b.material("wall", (0.7,) * 3)
+    lamp = b.material("lamp", (0.8,) * 3, emission=(light_radiance,) * 3)
+    b.mesh("room", *box((-1, 0, -1), (1, 2, 1), inward=True), w)
+    y = 2.0 if flush else 1.99
+    b.mesh("lamp", *quad((-0.2, y, -0.2), (0.2, y, -0.2), (0.2, y, 0.2), (-0.2, y, 0.2), facing=(0, -1, 0)), lamp)
+    if look_up:
+        b.camera("lamp", (0.0, 0.8, -0.98), (0, 1.2, 1.08), yfov_deg=65)
+    else:
+        b.camera("room", (0.0, 1.2, -0.98), (0, -0.45, 1), yfov_deg=65)
+    return w
+
+
+def reproduction_case(name):
+    """The small scenes that reproduce each way real meshes went wrong
+    (docs/design.md section 2, "Which geometry is handled how"), each in
+    the same closed room under a ceiling lamp:
+    'hole_shell'  a two-sided icosphere shell with a hole cut in its side;
+    'noisy_shell' a scan-like noisy two-sided shell (scan_shell, smaller);
+    'duplicates'  a box whose every face is repeated (same corners), and a
+                  slab overlapping the floor in its plane;
+    'lamp_edges'  the lamp 1 cm under the ceiling, seen from below;
+    'flush_lamp'  the lamp in the ceiling's plane (coplanar, overlapping),
+                  seen from below;
+    'box_floor'   a box resting on the floor;
+    'sphere_floor' a one-sided sphere touching the floor at one point."""
+    b = GltfBuilder()
+    w = _case_room(b, flush=name == "flush_lamp", look_up=name in ("flush_lamp", "lamp_edges"))
+    if name == "hole_shell":
+        pos, tri = icosphere(3, 0.35, center=(0, 0.6, 0.2))
+        c = pos[tri].mean(axis=1)
+        tri = tri[~((c[:, 2] < 0.2 - 0.2) & (np.abs(c[:, 0]) < 0.15) & (np.abs(c[:, 1] - 0.6) < 0.15))]
+        b.mesh("shell", pos, tri, b.material("shell", (0.7,) * 3, double_sided=True))
+    elif name == "noisy_shell":
+        pos, tri = scan_shell(subdiv=4, radius=0.3)
+        b.mesh("shell", pos + [0.0, 0.0, 0.2], tri, b.material("shell", (0.7,) * 3, double_sided=True))
+    elif name == "duplicates":
+        pos, tri = box((-0.3, 0.0, 0.0), (0.2, 0.5, 0.5))
+        b.mesh("box", pos, np.concatenate([tri, tri]), w)
+        b.mesh("slab", *quad((-0.9, 0, 0.4), (-0.4, 0, 0.4), (-0.4, 0, 0.9), (-0.9, 0, 0.9), facing=(0, 1, 0)), w)
+    elif name == "box_floor":
+        b.mesh("box", *box((-0.3, 0.0, 0.0), (0.2, 0.5, 0.5)), w)
+    elif name == "sphere_floor":
+        b.mesh("sphere", *icosphere(4, 0.3, center=(0, 0.3, 0.2)), w)
+    elif name not in ("flush_lamp", "lamp_edges"):
+        raise ValueError(f"unknown case {name!r}")
+    return b
+
+
+REPRODUCTION_CASES = ("hole_shell", "noisy_shell", "duplicates", "lamp_edges", "flush_lamp", "box_floor",
+                      "sphere_floor")
+
+
 def walkthrough(columns_segments=96, column_rings=64):
     """Procedural building: a row of rooms joined by doors, windows in the
     outer walls (sun outside), columns in the hall, a stair to a mezzanine,

@@ -55,7 +55,7 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
-                    kappa=1.0, trace=None, cut=None, sheet=None, flat=None):
+                    kappa=1.0, trace=None, cut=None, sheet=None, flat=None, edge=None):
     """Plain-Python linear propagation with the visibility rule of docs/design.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
@@ -65,7 +65,10 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
     two-sided sheet (ties -1 first; never sees its sheet's back). flat (n,)
     bool: a voxel on a flat stretch of surface (a grazing ray's gather on it
     is deferred, over up to 8 cells, to the voxel of its plane the line
-    meets nearest where the ray meets it).
+    meets nearest where the ray meets it). edge (n, 4): where a voxel's
+    surface ends in its cell, the half-plane e . g >= t of its plane (zeros:
+    it does not); a ray meeting its plane beyond that, within 2 cells,
+    passes it.
     Returns (gathered (n, 3), S (n,));
     with trace=x, also the list of (family, sign, source voxel) voxel x
     gathered from."""
@@ -74,6 +77,17 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
         sheet = np.zeros(n, bool)
     if flat is None:
         flat = np.zeros(n, bool)
+    if edge is None:
+        edge = np.zeros((n, 4))
+
+    def over(x, y):  # x lies over y's surface (inside its edge's half-plane)
+        return edge[y, :3].any() and dot(edge[y, :3], centroid[x]) >= edge[y, 3]
+
+    def off_edge(x, y, d, o, u):  # x's ray meets y's plane beyond the edge of y's surface
+        if not edge[y, :3].any():
+            return False
+        p = centroid[x] + (-d / o) * u
+        return np.linalg.norm(p - centroid[y]) <= 2.0 * h and dot(edge[y, :3], p) < edge[y, 3]
     gathered = np.zeros((n, 3))
     quad = np.zeros(n)
     sources = []
@@ -196,6 +210,9 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                     if x in deferred:
                                         met.pop(x, None)
                                     continue
+                                if d > 0 and not over(x, y) and off_edge(x, y, d, o, u):
+                                    keep.append(x)  # beside y's surface, its ray passes its edge
+                                    continue
                                 ty = dot(centroid[y] - centroid[x], u)
                                 above = d + ty * o
                                 val = y
@@ -222,6 +239,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                             elif not flat[y] and dot(centroid[x] - centroid[y], normal[y]) + \
                                     dot(centroid[y] - centroid[x], u) * o > tau * h:
                                 stay.append(x)  # level with curved y, its ray is in front of y's plane: past it
+                            elif not over(x, y) and off_edge(x, y, dot(centroid[x] - centroid[y], normal[y]), o, u):
+                                stay.append(x)  # beside y's surface, its ray crosses y's plane beyond its edge
                             elif cut is not None and (lambda w: 1 not in w and 2 in w)(
                                     [cut_between(y, x, False), cut_between(x, y, True)]):
                                 stay.append(x)  # y's back lies beyond a cutting surface x's ray moves away from

@@ -24,7 +24,7 @@ def test_discrete_sources_recover_the_voxel_seen(make_scene):
     for x in np.nonzero(s > 0)[0][:40]:
         _, _, trace = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(float),
                                       np.ones((len(v), 3)), *one, off, 1.0, trace=int(x), cut=sw.cut, sheet=sw.sheet,
-                                      flat=sw.flat)
+                                      flat=sw.flat, edge=sw.edge)
         seen = [y for _, _, y in trace]
         assert (src[x] == -1 and not seen) or [src[x]] == seen
 

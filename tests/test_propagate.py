@@ -16,7 +16,7 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     # the kernel works in cells: the same centroids (grid coordinates) for the reference
     slow = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(np.float64), radiosity, dirs.vectors,
                            dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, 1.0, cut=sw.cut, sheet=sw.sheet,
-                           flat=sw.flat)
+                           flat=sw.flat, edge=sw.edge)
     return fast, slow
 
 

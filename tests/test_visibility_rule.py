@@ -24,6 +24,8 @@ class Line:
     cut_sign: np.ndarray
     cut_plane: np.ndarray
     planar: np.ndarray
+    area: np.ndarray          # cells^2 (the cell size is 1): under 0.9 of the plane's cross-section of the cell, the
+    #                           surface ends in the cell (voxels/edges.py); a voxel covers its cell unless told
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     cell_size: float = 1.0
 
@@ -44,7 +46,8 @@ def line(*voxels):
     """voxels: dicts with x (centroid along the line), y (default 0.5),
     n (normal, normalised here), sheet (bool), cut (plane normal, plane
     offset n . g, side +1/-1) and flat (bool: planar, and flat when its
-    neighbours on the line lie on its plane). Cells follow from the centroids; the order
+    neighbours on the line lie on its plane), area (cells^2, default: its
+    whole cross-section of the cell). Cells follow from the centroids; the order
     given is the voxel order (a cell's voxels must be adjacent)."""
     c = np.array([[v["x"], v.get("y", 0.5), 0.5] for v in voxels])
     n = np.array([v["n"] for v in voxels], float)
@@ -61,7 +64,7 @@ def line(*voxels):
     keys = [tuple(x) for x in cell]
     assert all(keys[i] <= keys[i + 1] for i in range(len(keys) - 1)), "voxels must come in x-major cell order"
     return Line(cell, c, n, np.array([v.get("sheet", False) for v in voxels]), sign, plane,
-                np.array([v.get("flat", False) for v in voxels]))
+                np.array([v.get("flat", False) for v in voxels]), np.array([v.get("area", 10.0) for v in voxels]))
 
 
 ALONG_X = DirectionSet(1, np.array([[1, 0, 0]], np.int32), np.array([0], np.int32), np.array([[1.0, 0, 0]]),
@@ -144,6 +147,21 @@ def test_ray_behind_a_curved_back_is_blocked():
     level with it, is 0.33 cells behind its plane and meets its back."""
     vox = line(dict(x=0.5, n=PLUS), dict(x=2.5, y=0.1, n=(1, -1.5, 0)), dict(x=4.5, n=MINUS))
     assert seen(vox)[0] == -1
+
+
+@pytest.mark.parametrize("beside", [True, False])
+def test_ray_past_the_edge_of_a_surface_goes_on(beside):
+    """y, facing the rays, is the last piece of a surface that ends inside
+    its cell: it rises 0.3 of the way up the cell (area 0.3 of the plane's
+    cross-section; the edge of a box's face). x, beside the surface (above
+    its edge line), sends a ray that meets y's plane above the edge: it
+    passes y and meets the voxel beyond. The same ray from over the surface
+    (x's centroid inside the edge's half-plane, 0.25 up) gathers y: passing
+    there let light run down a body's side."""
+    top = dict(x=2.5, y=0.15, n=(-1, -0.2, 0), area=0.3, flat=True)  # faces the ray, tilted a little
+    x = dict(x=0.5, y=0.9, n=PLUS) if beside else dict(x=0.5, y=0.25, n=PLUS)
+    vox = line(x, top, dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == (2 if beside else 1)
 
 
 def test_tie_puts_the_sender_first():

@@ -13,10 +13,11 @@ import numpy as np
 from ..errors import BudgetError
 from ..kernels.rng import LINE_OFFSET_BOUNCE_STRIDE, STREAM_LINE_OFFSETS, rand01
 from .directions import DirectionSet
+from ..voxels.edges import edge_planes
 from ..voxels.lookup import flat_voxels
 from ..voxels.tolerances import FLAT_COS, FLAT_PLANE, SMOOTH_COS
 from .records import (C_CX, C_CZ, C_D, C_NX, C_NZ, CUT, LINE, MAX_CUT_ROWS, P_CUT, P_NX, P_NZ, P_SHEET, P_X, P_Z,
-                      POS, SHEET_FLAT)
+                      POS, SHEET_FLAT, SHEET_KINDS)
 from .sweep import HIT_BATCH, propagate_families
 
 TAU = 0.1     # plane tolerance, in cells (docs/design.md section 4)
@@ -39,16 +40,26 @@ class LineSweeper:
                            voxels.cell_size, SMOOTH_COS, FLAT_COS, FLAT_PLANE)
         pos[:, P_SHEET] = np.asarray(voxels.two_sided, bool) + SHEET_FLAT * flat
         cut = np.nonzero(voxels.cut_sign != 0)[0]
-        if len(cut) > MAX_CUT_ROWS:
-            raise BudgetError(f"{len(cut)} cut voxels: over the propagation's limit of {MAX_CUT_ROWS}; lower the "
-                              f"resolution")
+        # where an uncut voxel's surface ends inside its cell (voxels/edges.py), as a row after the cut rows
+        edge = np.zeros((n, 4))
+        edge_planes(cell, pos[:, P_X:P_Z + 1].astype(np.float64), voxels.normal.astype(np.float64),
+                    np.asarray(voxels.area, np.float64) / voxels.cell_size ** 2,
+                    (voxels.cut_sign == 0) & np.asarray(voxels.planar, bool), edge)
+        edged = np.nonzero(np.any(edge[:, :3] != 0, axis=1))[0]
+        if len(cut) + len(edged) > MAX_CUT_ROWS:
+            raise BudgetError(f"{len(cut) + len(edged)} cut and edge voxels: over the propagation's limit of "
+                              f"{MAX_CUT_ROWS}; lower the resolution")
         pos[cut, P_CUT] = voxels.cut_sign[cut] * (np.arange(len(cut)) + 1.0)
-        # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells
-        cutp = np.zeros((len(cut), CUT))
-        cutp[:, C_NX:C_D + 1] = voxels.cut_plane[cut].astype(np.float64)
-        cutp[:, C_D] += (cutp[:, C_NX:C_NZ + 1] * cell[cut]).sum(axis=1)
-        cutp[:, C_CX:C_CZ + 1] = cell[cut]
+        pos[edged, P_SHEET] += SHEET_KINDS * (len(cut) + np.arange(len(edged)) + 1.0)
+        # the cutting planes in absolute grid coordinates (n . g = offset) and the cut voxels' cells, then the edges
+        cutp = np.zeros((len(cut) + len(edged), CUT))
+        cutp[:len(cut), C_NX:C_D + 1] = voxels.cut_plane[cut].astype(np.float64)
+        cutp[:len(cut), C_D] += (cutp[:len(cut), C_NX:C_NZ + 1] * cell[cut]).sum(axis=1)
+        cutp[:len(cut), C_CX:C_CZ + 1] = cell[cut]
+        cutp[len(cut):, C_NX:C_D + 1] = edge[edged]
+        cutp[len(cut):, C_CX:C_CZ + 1] = cell[edged]
         self.cutp = cutp
+        self._edge_rows = edged
         self._cut_rows = cut
         self.pos = pos
         # voxels come sorted by (x-major cell key, facing, sheet): cells are contiguous
@@ -85,19 +96,29 @@ class LineSweeper:
         coordinates) of a surface that cut its pieces and its side of it (0:
         not cut), as the kernel sees them."""
         out = np.zeros((self.n, 5))
-        out[self._cut_rows, :4] = self.cutp[:, C_NX:C_D + 1]
+        out[self._cut_rows, :4] = self.cutp[:len(self._cut_rows), C_NX:C_D + 1]
         out[:, 4] = np.sign(self.pos[:, P_CUT])
         return out
 
     @property
     def sheet(self) -> np.ndarray:
         """(n,) bool: faces of two-sided sheets, as the kernel sees them."""
-        return (self.pos[:, P_SHEET] == 1) | (self.pos[:, P_SHEET] == 1 + SHEET_FLAT)
+        k = self.pos[:, P_SHEET] % SHEET_KINDS
+        return (k == 1) | (k == 1 + SHEET_FLAT)
 
     @property
     def flat(self) -> np.ndarray:
         """(n,) bool: voxels on a flat stretch of surface (lookup.flat_voxels), as the kernel sees them."""
-        return self.pos[:, P_SHEET] >= SHEET_FLAT
+        return self.pos[:, P_SHEET] % SHEET_KINDS >= SHEET_FLAT
+
+    @property
+    def edge(self) -> np.ndarray:
+        """(n, 4) float64: per voxel the half-plane of its plane where its
+        surface lies inside its cell (e, t: e . g >= t, grid coordinates;
+        zeros: it runs on through the cell), as the kernel sees it."""
+        out = np.zeros((self.n, 4))
+        out[self._edge_rows] = self.cutp[len(self._cut_rows):, C_NX:C_D + 1]
+        return out
 
     @property
     def centroid(self) -> np.ndarray:

@@ -24,11 +24,15 @@ P_NX, P_NY, P_NZ = _u(3), _u(4), _u(5)   # unit normal
 P_CUT = _u(6)    # 0: the voxel's pieces were not cut by another surface; else +-(row + 1): the side of the cutting
 #                  plane it lies on (the sign) and that plane's row in the cut table
 P_SHEET = _u(7)  # 1: a face of a two-sided sheet (its back is the other facing's voxel, at the same centroid);
-#                  plus SHEET_FLAT: the voxel lies on a flat stretch of surface (voxels.lookup.flat_voxels)
+#                  plus SHEET_FLAT: the voxel lies on a flat stretch of surface (voxels.lookup.flat_voxels);
+#                  plus SHEET_KINDS * (row + 1) where the voxel's surface ends inside its cell: its edge's row in
+#                  the cut table (`sheet_kind`, `edge_row`)
 SHEET_FLAT = 2.0
+SHEET_KINDS = 4.0
 MAX_CUT_ROWS = 2 ** 24 - 1  # rows a float32 P_CUT can name exactly
 
-# Cut table, `cutp` (m, CUT) float64, one row per cut voxel:
+# Cut table, `cutp` (m, CUT) float64, one row per cut voxel, then one per edge voxel (the same fields: the
+# edge's in-plane unit normal e pointing into the surface, the offset t (e . g >= t on the surface), its cell):
 CUT = 7
 C_NX, C_NY, C_NZ = _u(0), _u(1), _u(2)   # the cutting plane's unit normal
 C_D = _u(3)                              # its offset: n . g = C_D for g on the plane (grid coordinates)
@@ -69,9 +73,22 @@ def cut_side(pos, v):
 
 
 @njit(cache=True, inline="always")
+def sheet_kind(k):
+    """A P_SHEET field without its edge row: 0, 1 (sheet), + SHEET_FLAT (flat)."""
+    return k - SHEET_KINDS * np.floor(k / SHEET_KINDS)
+
+
+@njit(cache=True, inline="always")
+def edge_row(k):
+    """The cut table's row of the edge of a voxel whose P_SHEET field is k
+    (-1: its surface does not end inside its cell)."""
+    return np.int64(k / SHEET_KINDS) - 1
+
+
+@njit(cache=True, inline="always")
 def is_sheet(pos, v):
     """Is voxel v a face of a two-sided sheet?"""
-    k = pos[v, P_SHEET]
+    k = sheet_kind(pos[v, P_SHEET])
     return k == 1.0 or k == 1.0 + SHEET_FLAT
 
 

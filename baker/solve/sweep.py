@@ -51,11 +51,11 @@ from numba import njit, prange
 from ..kernels.prefetch import prefetch
 from ..startup import checkpoint
 from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P_Z, POS, R_BOUND, R_DEFER, R_NEXT,
-                      R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, SHEET_FLAT, T_HEAD, T_KEY,
-                      T_LAST, T_STAMP, flush_hits, unlink)
+                      R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, RING, SHEET_FLAT, SHEET_KINDS, T_HEAD,
+                      T_KEY, T_LAST, T_STAMP, edge_row, flush_hits, sheet_kind, unlink)
 from .visibility import (CHECK, GATHER, WAIT, above_deferred, back_beyond_cut, below_deferred, convex_edge, defer,
                          deferred_t, defers, front_check, front_min, front_outcome, hits_back, in_front, order_cell,
-                         past_silhouette,
+                         off_edge, over_surface, past_silhouette,
                          passes_parallel, sheet_convex_edge)
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
@@ -167,7 +167,8 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                 ny0, ny1, ny2 = float(pos[yr + P_NX]), float(pos[yr + P_NY]), float(pos[yr + P_NZ])
                 cy0, cy1, cy2 = float(pos[yr + P_X]), float(pos[yr + P_Y]), float(pos[yr + P_Z])
                 ycut = pos[yr + P_CUT] != 0.0
-                kind = pos[yr + P_SHEET]
+                kraw = pos[yr + P_SHEET]
+                kind = sheet_kind(kraw)
                 dmin = front_min(kind, tau)
                 # y the inner face of a convex two-sided surface the line runs along (visibility.front_check)
                 z_sheet = dmin == 0.0 and last != EMPTY and sheet_convex_edge(
@@ -196,6 +197,14 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                     if what == CHECK:
                         what = front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf,
                                            gcell, cutp, tau, kappa, ux, uy, uz)
+                    if what == GATHER and kraw >= SHEET_KINDS and d > 0.0:
+                        x0, x1, x2 = float(recf[jr + R_X]), float(recf[jr + R_Y]), float(recf[jr + R_Z])
+                        er = edge_row(kraw)
+                        if not over_surface(cutp, er, x0, x1, x2) and off_edge(cutp, er, d, o, x0, x1, x2, cy0, cy1,
+                                                                               cy2, ux, uy, uz):
+                            # x beside y's surface, its ray meeting y's plane beyond the edge where the surface
+                            # ends: it passes (visibility.off_edge)
+                            what = WAIT
                     if what == WAIT:
                         prev = j
                         j = nj
@@ -265,11 +274,17 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                             (cy1 - float(recf[jr + R_Y])) * float(recf[jr + R_NY]) + \
                             (cy2 - float(recf[jr + R_Z])) * float(recf[jr + R_NZ])
                     gone = hits_back(d, ex, z_edge, tau, kappa)
-                    if gone and pos[yr + P_SHEET] < SHEET_FLAT:
-                        # a curved y: x's ray, level with y, already in front of y's tangent plane has passed a
-                        # convex silhouette (visibility.past_silhouette): it keeps waiting
-                        gone = not past_silhouette(d, o, float(recf[jr + R_X]), float(recf[jr + R_Y]),
-                                                   float(recf[jr + R_Z]), cy0, cy1, cy2, ux, uy, uz, tau)
+                    if gone:
+                        kraw = pos[yr + P_SHEET]
+                        x0, x1, x2 = float(recf[jr + R_X]), float(recf[jr + R_Y]), float(recf[jr + R_Z])
+                        if sheet_kind(kraw) < SHEET_FLAT and past_silhouette(d, o, x0, x1, x2, cy0, cy1, cy2, ux, uy,
+                                                                             uz, tau):
+                            # a curved y: x's ray, level with y, already in front of y's tangent plane has passed
+                            # a convex silhouette: it keeps waiting
+                            gone = False
+                        elif kraw >= SHEET_KINDS and not over_surface(cutp, edge_row(kraw), x0, x1, x2) and \
+                                off_edge(cutp, edge_row(kraw), d, o, x0, x1, x2, cy0, cy1, cy2, ux, uy, uz):
+                            gone = False  # x beside y's surface, its ray crossing y's plane beyond its edge
                     if gone:
                         xe = np.int64(rec[jr + R_VOXEL])
                         if (xe < 0 or ycut) and back_beyond_cut(pos_all, xe if xe >= 0 else -xe - 1, xe < 0, pos2, y,
