@@ -75,6 +75,8 @@ def cut_side(pos, v):
 @njit(cache=True, inline="always")
 def sheet_kind(k):
     """A P_SHEET field without its edge row: 0, 1 (sheet), + SHEET_FLAT (flat)."""
+    if k < SHEET_KINDS:  # most voxels: no edge, no division
+        return k
     return k - SHEET_KINDS * np.floor(k / SHEET_KINDS)
 
 
