@@ -2,11 +2,12 @@
 default preset a user runs (docs/design.md section 2, "Which geometry is
 handled how"): a scan-like two-sided noisy shell standing in a room
 (scenes/scan_room.glb) and the public Cornell box OBJ with its duplicated
-faces (scenes/cornell_box_original.obj).
+faces (scenes/cornell_box_original.obj), and the small scenes that each
+reproduce one failure (scenes.generate.reproduction_case).
 
 The comparison: the voxel view against the path tracer, 64 x 64 pixels,
-the same camera; luminance; the lamp's pixels (and the two rings of
-pixels its edge covers in part) left out. Mean ratio, the worst 8 x 8
+the same camera; luminance; the lamp's pixels (any of whose 4 x 4
+sub-pixel camera rays meets an emitter) left out. Mean ratio, the worst 8 x 8
 block, and lit pixels that come out black. The path tracer's own noise at
 these settings is about 1% per block (measured between seeds)."""
 import os

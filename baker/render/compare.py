@@ -1,13 +1,15 @@
 """An image against a reference (the path tracer's), as the accuracy tests
-and benchmarks measure it: luminance; the lamp's pixels, and the rings of
-pixels its edge covers in part, left out (a lamp a hundred times brighter
-than the walls would weigh on the mean more than any wall); the mean
-ratio, the ratio per block, and lit pixels that come out black.
+and benchmarks measure it: luminance; the lamp's pixels left out (a lamp
+a hundred times brighter than the walls would weigh on the mean more than
+any wall); the mean ratio, the ratio per block, and lit pixels that come
+out black.
 
 The lamp's pixels are found by the camera's own rays (`lamp_pixels`: a
-pixel any of whose 4 x 4 sub-pixel rays first meets an emitter). Without
-that mask the brightest pixels stand in for the lamp, which is wrong
-where no lamp is in view (the brightest surface would be left out)."""
+pixel any of whose 4 x 4 sub-pixel rays first meets an emitter), so a
+pixel the lamp's edge covers in part is the lamp's. Without that mask the
+brightest pixels and two rings of pixels around them stand in for the
+lamp, which is wrong where no lamp is in view (the brightest surface
+would be left out)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
