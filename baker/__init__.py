@@ -11,7 +11,12 @@ The library face (the command line `voxbake` is a thin layer over it):
 """
 __version__ = "0.1.0"
 
-import os as _os
+# first of all, so that a Ctrl-C or SIGTERM during the imports below is answered once the command runs (cli.run)
+from .startup import hold_interrupts  # noqa: E402
+
+hold_interrupts()
+
+import os as _os  # noqa: E402
 
 # numba's OpenMP threads spin while they wait for work by default; beside another busy process a spinning
 # thread holds the core that the late thread needs (the propagation meets a barrier per batch of
@@ -19,12 +24,9 @@ import os as _os
 # sleep, and the same speed on a quiet machine (bench/threads.py). The user's own setting wins.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from .startup import hold_interrupts  # noqa: E402
 from .kernel_cache import sync as _sync_kernel_cache  # noqa: E402
 
 _sync_kernel_cache()  # cached kernels compiled from other sources are dropped (kernel_cache.py)
-
-hold_interrupts()  # a command's Ctrl-C during these imports is answered once the command runs (cli.run)
 
 from .config import PRESETS, SolverConfig, solver_config  # noqa: E402
 from .errors import BakeFileError, BudgetError, ConfigError, GLError, SceneError, VoxgiError, VoxgiWarning  # noqa: E402

@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 
+from .cli_args import EXPOSURE, IMAGE_SIDE, SEED, THREADS, OneLineParser, colour, integer, number, sun, triple
 from .errors import VoxgiError, VoxgiWarning
 
 SPP_CAP = 1 << 20  # pathtrace: the most samples per pixel --noise or --time-limit take unless --spp says
@@ -31,36 +32,20 @@ The first run of a method compiles its kernels (10-30 s); later runs reuse them.
 """
 
 
-def _triple(text, what="X,Y,Z"):
-    try:
-        v = [float(t) for t in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-    if len(v) != 3 or not np.all(np.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"expected {what} (three numbers), got {text!r}")
-    return np.array(v)
-
-
-def _colour(text):
-    v = _triple(text, "R,G,B")
-    if (v < 0).any():
-        raise argparse.ArgumentTypeError(f"radiance must not be negative, got {text!r}")
-    return v
-
-
-def _sun(text):
-    az, el, e = _triple(text, "AZIMUTH,ELEVATION,IRRADIANCE")
-    if not -90 <= el <= 90 or e < 0:
-        raise argparse.ArgumentTypeError(f"elevation must lie in -90..90 and irradiance be >= 0, got {text!r}")
-    return az, el, e
+def load_limits(args):
+    """What the scene file may make us read and hold (scene/refs.py)."""
+    from .scene.refs import LoadLimits
+    return LoadLimits(allow_outside_refs=args.allow_outside_refs, max_texture=args.max_texture,
+                      memory_budget_mb=args.memory_budget if args.memory_budget is not None else
+                      LoadLimits.memory_budget_mb)
 
 
 def _load(args):
     """The scene with the lights the command line adds."""
-    from .scene import Sky, load_scene, sun
-    lights = [sun(*args.sun)] if getattr(args, "sun", None) is not None else []
+    from .scene import Sky, load_scene, sun as make_sun
+    lights = [make_sun(*args.sun)] if getattr(args, "sun", None) is not None else []
     sky = Sky(args.sky, args.sky_mode == "hemisphere") if getattr(args, "sky", None) is not None else None
-    return load_scene(args.scene, one_sided=args.one_sided, lights=lights, sky=sky)
+    return load_scene(args.scene, one_sided=args.one_sided, lights=lights, sky=sky, limits=load_limits(args))
 
 
 def _camera(args, scene, bvh):
@@ -69,15 +54,38 @@ def _camera(args, scene, bvh):
     return adjust_camera(cam, args.look_from, args.look_at, args.up, args.fov)
 
 
-def _check_common(args):
-    """Argument checks that need no scene, before any work."""
+def _inputs(args) -> list:
+    """The files a command reads: outputs must never be one of them."""
+    from .scene.load import resolve
+    return [resolve(args.scene)] if getattr(args, "scene", None) else []
+
+
+def _check_common(args, extensions=None):
+    """Argument checks that need no scene, before any work: the output
+    (`-o`, with `extensions`) and the stats file are writable, are neither
+    an input nor each other, and are regular files or new paths."""
     from .config import check_threads
     from .fileio import check_output_path
     check_threads(args.threads)
+    inputs = _inputs(args)
+    if getattr(args, "output", None):
+        check_output_path(args.output, extensions, inputs)
     if getattr(args, "stats", None):
-        check_output_path(args.stats)
-    if getattr(args, "fov", None) is not None and not 0 < args.fov < 180:
-        raise VoxgiError(f"--fov must lie between 0 and 180 degrees (got {args.fov})")
+        check_output_path(args.stats, (".json",), inputs + [args.output] if getattr(args, "output", None)
+                          else inputs)
+        if getattr(args, "output", None) and os.path.abspath(args.stats) == os.path.abspath(args.output):
+            raise VoxgiError("--stats names the output file itself: choose another file", args.stats)
+
+
+def write_stats(args, stats):
+    """Writes --stats after the main output; a failure says that the main
+    output was written."""
+    if not args.stats:
+        return
+    try:
+        stats.write(args.stats)
+    except VoxgiError as e:
+        raise VoxgiError(f"{e} (the main output {args.output} was written)", e.path) from None
 
 
 def cmd_scenes(args):
@@ -151,15 +159,13 @@ def _lightcuts_config(args):
 
 def cmd_render(args):
     from .config import threads
-    from .fileio import check_output_path
     from .progress import bar
     from .render import camera_array, write_image
     from .scene import build_scene_bvh, pack
     from .startup import checkpoint
     from .stats import Stats
-    check_output_path(args.output, (".exr", ".png"))
-    _check_common(args)
-    if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
+    _check_common(args, (".exr", ".png"))
+    if args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
     adaptive = args.time_limit is not None or args.noise is not None
     if args.spp is None:
@@ -257,8 +263,7 @@ def cmd_render(args):
     checkpoint()  # a Ctrl-C from the last stretch: stop before writing
     with stats.stage("write"):
         write_image(args.output, image, args.exposure)
-    if args.stats:
-        stats.write(args.stats)
+    write_stats(args, stats)
     print(f"wrote {args.output}  ({args.width}x{args.height}, {stats.as_dict()['total_seconds']:.2f} s)")
     return 0
 
@@ -299,11 +304,9 @@ def cmd_bake(args):
     from .bake import bake_config, bake_scene, write_bake
     from .config import threads
     from .errors import ConfigError
-    from .fileio import check_output_path
     from .startup import checkpoint
     from .stats import Stats
-    check_output_path(args.output, (".glb",))
-    _check_common(args)
+    _check_common(args, (".glb",))
     try:
         config = bake_config(args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
                              preview_vpls=args.preview_vpls, texel_samples=args.texel_samples,
@@ -325,9 +328,8 @@ def cmd_bake(args):
         raise VoxgiError("internal error: non-finite or negative texels (please report)", args.scene)
     checkpoint()
     with stats.stage("write"):
-        write_bake(args.output, bake)
-    if args.stats:
-        stats.write(args.stats)
+        write_bake(args.output, bake, inputs=_inputs(args))
+    write_stats(args, stats)
     print(bake_summary(stats, bake))
     size = os.path.getsize(args.output)
     print(f"wrote {args.output}  ({size / 2 ** 20:.1f} MiB, {stats.as_dict()['total_seconds']:.2f} s)")
@@ -362,12 +364,20 @@ def cmd_audit(args):
 def _scene_args(p):
     p.add_argument("scene", help="scene file (.glb, .gltf, .obj, .ply) or a built-in scene's name")
     p.add_argument("--one-sided", action="store_true", help="treat OBJ/PLY triangles as one-sided (default: double)")
+    g = p.add_argument_group("input limits (every scene file is untrusted)")
+    g.add_argument("--allow-outside-refs", action="store_true",
+                   help="let the scene's buffers, images and material libraries name files outside the scene "
+                        "file's folder (by default they are refused; devices and FIFOs always are)")
+    g.add_argument("--max-texture", type=integer(16, 65536), default=4096, metavar="PIXELS",
+                   help="textures longer than this on a side are scaled down to it (default 4096)")
+    g.add_argument("--memory-budget", type=number(1, 1 << 30), metavar="MIB",
+                   help="refuse a load or a voxelization estimated above this many MiB (default 8192)")
     g = p.add_argument_group("extra light (for a model with no lamp of its own)")
-    g.add_argument("--sky", type=_colour, metavar="R,G,B",
+    g.add_argument("--sky", type=colour, metavar="R,G,B",
                    help="a uniform sky of this radiance (W m^-2 sr^-1) around the scene")
     g.add_argument("--sky-mode", choices=("hemisphere", "sphere"), default="hemisphere",
                    help="the sky lights from the upper hemisphere (+Y up, the default) or from every direction")
-    g.add_argument("--sun", type=_sun, metavar="AZIMUTH,ELEVATION,IRRADIANCE",
+    g.add_argument("--sun", type=sun, metavar="AZIMUTH,ELEVATION,IRRADIANCE",
                    help="a sun: azimuth in degrees from +Z towards +X, elevation above the horizon (+Y up), "
                         "irradiance in W/m^2 on a surface facing it")
 
@@ -377,39 +387,38 @@ def _camera_args(p):
     g.add_argument("--camera", default=None,
                    help="camera name or index in the file (default: its first; none: an automatic camera that "
                         "sees the scene, inside a closed room or through the open side of a box)")
-    g.add_argument("--look-from", type=_triple, metavar="X,Y,Z", help="camera position (scene units)")
-    g.add_argument("--look-at", type=_triple, metavar="X,Y,Z", help="point the camera looks at")
-    g.add_argument("--up", type=_triple, metavar="X,Y,Z", help="camera up direction (default: the camera's, +Y)")
-    g.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view in degrees")
+    g.add_argument("--look-from", type=triple, metavar="X,Y,Z", help="camera position (scene units)")
+    g.add_argument("--look-at", type=triple, metavar="X,Y,Z", help="point the camera looks at")
+    g.add_argument("--up", type=triple, metavar="X,Y,Z", help="camera up direction (default: the camera's, +Y)")
+    g.add_argument("--fov", type=number(0, 180, lo_open=True), metavar="DEG", help="vertical field of view in degrees")
 
 
 def _solver_args(p):
     g = p.add_argument_group("voxel solver")
     g.add_argument("--preset", choices=("preview", "default", "high"), default="default",
                    help="solver preset (default: default)")
-    g.add_argument("--surface-cells", type=int,
+    g.add_argument("--surface-cells", type=integer(1, 10 ** 8),
                    help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
                         "the surface area (preset: 12500/25000/100000)")
-    g.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis (instead)")
-    g.add_argument("--cell-size", type=float, help="voxel cell size in scene units (instead of either)")
-    g.add_argument("--radius", type=int, help="direction radius r of the first propagated bounce")
+    g.add_argument("--resolution", type=integer(1, 1 << 16), help="voxel cells along the scene's longest axis (instead)")
+    g.add_argument("--cell-size", type=number(0, 1e18, lo_open=True), help="voxel cell size in scene units (instead of either)")
+    g.add_argument("--radius", type=integer(1, 64), help="direction radius r of the first propagated bounce")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce")
-    g.add_argument("--photons", type=int, help="photons for the first bounce (instead of --photons-per-voxel)")
-    g.add_argument("--photons-per-voxel", type=float, help="photons per voxel for the first bounce (preset: 32/64/128)")
-    g.add_argument("--photon-smoothing", type=float, metavar="K",
+    g.add_argument("--photons", type=integer(1, 10 ** 10), help="photons for the first bounce (instead of --photons-per-voxel)")
+    g.add_argument("--photons-per-voxel", type=number(0, 1e6, lo_open=True), help="photons per voxel for the first bounce (preset: 32/64/128)")
+    g.add_argument("--photon-smoothing", type=number(0, 100), metavar="K",
                    help="pool a voxel's photons with same-surface neighbours that agree within K standard "
                         "deviations of the photon noise (preset: 2/0/0; 0: off)")
-    g.add_argument("--tolerance", type=float, help="stop when new light < tolerance x first bounce")
-    g.add_argument("--max-bounces", type=int, help="bounce cap")
-    g.add_argument("--memory-budget", type=float, help="refuse voxelizations above this many MiB")
+    g.add_argument("--tolerance", type=number(0, 1), help="stop when new light < tolerance x first bounce")
+    g.add_argument("--max-bounces", type=integer(1, 10000), help="bounce cap")
     g = p.add_argument_group("lightcuts (render --method lightcuts; bake --preset default/high)")
-    g.add_argument("--epsilon", type=float, help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01; "
+    g.add_argument("--epsilon", type=number(0, 1, lo_open=True), help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01; "
                                                  "a bake's texels at default: 0.01)")
-    g.add_argument("--direct-vpls", type=int, help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
+    g.add_argument("--direct-vpls", type=integer(1, 1 << 24), help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
 
 
 def build_parser():
-    ap = argparse.ArgumentParser(
+    ap = OneLineParser(
         prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
         description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer. "
                     "It bakes lightmaps into glTF files (`voxbake bake`) and renders images.")
@@ -448,25 +457,25 @@ def build_parser():
     p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
     p.add_argument("--method", choices=("pathtrace", "voxels", "lightcuts", "instant-radiosity", "lightmap"),
                    default="pathtrace", help="default: pathtrace")
-    p.add_argument("--vpls-per-frame", type=int, default=16,
+    p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16,
                    help="instant-radiosity: VPLs added per frame (default 16)")
-    p.add_argument("--frames", type=int, default=256, help="instant-radiosity: frames at most (default 256)")
-    p.add_argument("--ir-tolerance", type=float, default=0.0,
+    p.add_argument("--frames", type=integer(1, 1 << 20), default=256, help="instant-radiosity: frames at most (default 256)")
+    p.add_argument("--ir-tolerance", type=number(0, 1), default=0.0,
                    help="instant-radiosity: stop when a frame changes the image by less than this (relative)")
-    p.add_argument("--width", type=int, default=512, help="image width in pixels (default 512)")
-    p.add_argument("--height", type=int, default=512, help="image height in pixels (default 512)")
-    p.add_argument("--spp", type=int, default=None,
+    p.add_argument("--width", type=IMAGE_SIDE, default=512, help="image width in pixels (default 512)")
+    p.add_argument("--height", type=IMAGE_SIDE, default=512, help="image height in pixels (default 512)")
+    p.add_argument("--spp", type=integer(1, SPP_CAP), default=None,
                    help=f"pathtrace: samples per pixel (default 64; with --noise or --time-limit the most to take, "
                         f"default {SPP_CAP})")
-    p.add_argument("--noise", type=float, default=None, metavar="TARGET",
+    p.add_argument("--noise", type=number(0, 1, lo_open=True), default=None, metavar="TARGET",
                    help="pathtrace: stop when the estimated relative RMSE of the image falls to TARGET (0.02: 2%%); "
                         "the estimate comes from two halves of each pixel's samples, over the pixels that do "
                         "not see a lamp directly")
-    p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+    p.add_argument("--time-limit", type=number(0, 1e7, lo_open=True), default=None, metavar="SECONDS",
                    help="pathtrace: stop after about this many seconds (of path tracing)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same image, any thread count)")
-    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
-    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")
+    p.add_argument("--seed", type=SEED, default=0, help="random seed (same seed, same image, any thread count)")
+    p.add_argument("--threads", type=THREADS, default=0, help="worker threads (default 0: all cores)")
+    p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
     _camera_args(p)
     _solver_args(p)
@@ -488,24 +497,24 @@ def build_parser():
     p.add_argument("--uv", choices=("per-triangle", "xatlas"), default="per-triangle",
                    help="lightmap UVs: one square map per triangle (default, the thesis's method: deduplicated, "
                         "quadtree-packed) or xatlas charts over connected triangles")
-    p.add_argument("--texel-density", type=float, metavar="D",
+    p.add_argument("--texel-density", type=number(0, 1e9, lo_open=True), metavar="D",
                    help="texels per scene unit (default: one texel per voxel cell)")
-    p.add_argument("--preview-vpls", type=int, default=65_536,
+    p.add_argument("--preview-vpls", type=integer(0, 1 << 24), default=65_536,
                    help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
                         "0: none)")
-    p.add_argument("--texel-samples", type=int, metavar="N",
+    p.add_argument("--texel-samples", type=integer(1, 16), metavar="N",
                    help="anti-aliasing of lightcuts texels: where the light changes sharply across a texel (a "
                         "shadow's edge, a contact) it takes the mean of an N x N grid of points (default: 2 for "
                         "default, 4 for high; 1: one point per texel)")
-    p.add_argument("--texel-interpolate", type=float, metavar="T",
+    p.add_argument("--texel-interpolate", type=number(0, 1), metavar="T",
                    help="adaptive shading of lightcuts texels: every other texel of every other row is shaded, "
                         "and a texel between shaded ones that agree within T (a share of the brightest) takes "
                         "their mean; the others are shaded too (default: 0.2 for default, 0 for high: every "
                         "texel shaded)")
     p.add_argument("--texels", choices=("voxels", "lightcuts"),
                    help="texel values from the voxel solution (preview's) or lightcuts (default and high's)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bake, any thread count)")
-    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
+    p.add_argument("--seed", type=SEED, default=0, help="random seed (same seed, same bake, any thread count)")
+    p.add_argument("--threads", type=THREADS, default=0, help="worker threads (default 0: all cores)")
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
     _solver_args(p)
     p.set_defaults(func=cmd_bake)
@@ -517,13 +526,13 @@ def build_parser():
                                    "upper bound (it also counts grazing within a cell).")
     _scene_args(p)
     p.add_argument("--preset", choices=("preview", "default", "high"), default="default")
-    p.add_argument("--resolution", type=int, help="voxel cells along the scene's longest axis")
-    p.add_argument("--cell-size", type=float, help="voxel cell size in scene units")
-    p.add_argument("--radius", type=int, default=4, help="direction radius r to sample families from (default 4)")
-    p.add_argument("--families", type=int, default=16, help="families sampled (default 16)")
-    p.add_argument("--samples", type=int, default=2000, help="voxels per family (default 2000)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--threads", type=int, default=0, help="worker threads (default 0: all cores)")
+    p.add_argument("--resolution", type=integer(1, 1 << 16), help="voxel cells along the scene's longest axis")
+    p.add_argument("--cell-size", type=number(0, 1e18, lo_open=True), help="voxel cell size in scene units")
+    p.add_argument("--radius", type=integer(1, 64), default=4, help="direction radius r to sample families from (default 4)")
+    p.add_argument("--families", type=integer(1, 10000), default=16, help="families sampled (default 16)")
+    p.add_argument("--samples", type=integer(1, 10 ** 6), default=2000, help="voxels per family (default 2000)")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--threads", type=THREADS, default=0, help="worker threads (default 0: all cores)")
     p.set_defaults(func=cmd_audit)
     return ap
 
@@ -565,13 +574,18 @@ def run(func, *args):
         except MemoryError:
             print("error: out of memory (lower --resolution or --memory-budget)", file=sys.stderr)
             return 2
-        except BrokenPipeError:  # the output's reader left (`voxbake scenes | head -1`): stop quietly
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            return 141
+        except OSError as e:  # an output or input the system refused (a full disk, a permission)
+            if isinstance(e, BrokenPipeError):  # the output's reader left (`voxbake scenes | head -1`): quietly
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                return 141
+            where = f"{e.filename}: " if e.filename else ""
+            print(f"error: {where}{e.strerror or type(e).__name__}", file=sys.stderr)
+            return 2
         except BaseException as e:
             if interrupted(e):
+                from .startup import exit_status
                 print("interrupted: nothing was written", file=sys.stderr)
-                return 130
+                return exit_status()
             raise
         finally:
             release_interrupts()

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from baker.cli import run
+from baker.cli_args import EXPOSURE, IMAGE_SIDE, OneLineParser, integer
 from baker.errors import VoxgiError
 
 from .renderer import MODES
@@ -35,12 +36,10 @@ def _camera(bake, which):
 
 def cmd_walk(args):
     from .window import Walkthrough, load_script
-    if args.width < 64 or args.height < 64:
-        raise VoxgiError(f"window size {args.width}x{args.height} too small (64x64 at least)")
     script = load_script(args.script) if args.script else None
     if args.screenshot:
         from baker.fileio import check_output_path
-        check_output_path(args.screenshot, (".png",))
+        check_output_path(args.screenshot, (".png",), inputs=[args.bake])
     bake = _read(args.bake)
     cam = _camera(bake, args.camera)
     result = Walkthrough(bake, args.width, args.height, cam, args.exposure, args.mode, script, args.frames,
@@ -55,11 +54,9 @@ def cmd_snapshot(args):
     from baker.render import write_image
     from baker.startup import checkpoint
     from .snapshot import snapshot
-    check_output_path(args.output, (".png", ".exr"))
-    if args.width < 1 or args.height < 1 or args.width * args.height > 64_000_000:
+    check_output_path(args.output, (".png", ".exr"), inputs=[args.bake])
+    if args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
-    if args.frames < 1 or args.vpls_per_frame < 1:
-        raise VoxgiError("--frames and --vpls-per-frame must be at least 1")
     bake = _read(args.bake)
     cam = _camera(bake, args.camera)
     from baker.progress import bar
@@ -89,7 +86,7 @@ def cmd_glinfo(args):
 
 
 def build_parser():
-    ap = argparse.ArgumentParser(
+    ap = OneLineParser(
         prog="voxview", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
         description="voxgi viewer: walk through a baked scene (a .glb written by `voxbake bake`) in a window, or "
                     "take snapshots of it without a display. `voxview BAKE.glb` is `voxview walk BAKE.glb`.")
@@ -103,13 +100,13 @@ def build_parser():
                                    "sRGB.\n\n" + EPILOG.split("\n\n", 1)[1])
     p.add_argument("bake", help="bake file (.glb from `voxbake bake`)")
     p.add_argument("--camera", default=None, help="start at this camera (name or index; default: the first)")
-    p.add_argument("--width", type=int, default=1280, help="window width (default 1280)")
-    p.add_argument("--height", type=int, default=720, help="window height (default 720)")
-    p.add_argument("--exposure", type=float, default=None, help="exposure in EV (default: automatic)")
+    p.add_argument("--width", type=integer(64, 16384), default=1280, help="window width (default 1280)")
+    p.add_argument("--height", type=integer(64, 16384), default=720, help="window height (default 720)")
+    p.add_argument("--exposure", type=EXPOSURE, default=None, help="exposure in EV (default: automatic)")
     p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
                    help="view to start in (default: lightmap; preview: progressive instant radiosity)")
     p.add_argument("--script", metavar="FILE.json", help="scripted input events (see viewer/window.py)")
-    p.add_argument("--frames", type=int, help="close after this many frames")
+    p.add_argument("--frames", type=integer(1, 1 << 24), help="close after this many frames")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame here")
     p.set_defaults(func=cmd_walk)
 
@@ -120,16 +117,16 @@ def build_parser():
     p.add_argument("bake", help="bake file (.glb from `voxbake bake`)")
     p.add_argument("-o", "--output", required=True, help="output image (.png or .exr)")
     p.add_argument("--camera", default=None, help="camera name or index (default: the first)")
-    p.add_argument("--width", type=int, default=512)
-    p.add_argument("--height", type=int, default=512)
+    p.add_argument("--width", type=IMAGE_SIDE, default=512)
+    p.add_argument("--height", type=IMAGE_SIDE, default=512)
     p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
                    help="lightmap (default), a debug view, or preview (progressive instant radiosity over the "
                         "bake's VPL list, at the pixels' centres)")
-    p.add_argument("--frames", type=int, default=64, help="preview mode: frames to accumulate (default 64)")
-    p.add_argument("--vpls-per-frame", type=int, default=16, help="preview mode: VPLs a frame (default 16)")
-    p.add_argument("--samples", type=int, default=4, help="samples per pixel along each axis (default 4)")
+    p.add_argument("--frames", type=integer(1, 1 << 20), default=64, help="preview mode: frames to accumulate (default 64)")
+    p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16, help="preview mode: VPLs a frame (default 16)")
+    p.add_argument("--samples", type=integer(1, 16), default=4, help="samples per pixel along each axis (default 4)")
     p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
-    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV (default: automatic)")
+    p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
     p.set_defaults(func=cmd_snapshot)
 
     p = sub.add_parser("glinfo", help="check headless OpenGL (EGL) and build every shipped shader",

@@ -15,9 +15,11 @@
   root `VOXGI_lightmap` extension for ours, with the ordered VPL list of
   the viewer's progressive preview (`vpls`: float32 rows of VPL_FIELDS).
 - Cameras, KHR_lights_punctual lights, and in root `extras.voxgi`: format
-  version, voxgi version, settings, counts, timings, and the SHA-256 of the
-  binary chunk, which the reader checks: a damaged or altered file is
-  refused with one line, never half read.
+  version, voxgi version, settings, counts, and `fileSha256`, the SHA-256
+  of the whole file with those 64 digits written as zeros (JSON and binary
+  chunk alike), which the reader checks: a damaged or altered file is
+  refused with one line, never half read. Nothing in the file depends on
+  the machine or the thread count: the same bake is the same bytes.
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ import numpy as np
 from ..errors import BakeFileError
 from .mesh import Bake
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: the checksum covers the whole file
 EXTENSION = "VOXGI_lightmap"
 VPL_FIELDS = ("px", "py", "pz", "nx", "ny", "nz", "r", "g", "b", "area", "kind", "indirect")  # float32 per VPL
 HALF_MAX = 60000.0
@@ -64,8 +66,8 @@ def _texture_png(tex):
     return buf.getvalue()
 
 
-def write_bake(path, bake: Bake):
-    """Writes `bake` to `path` (.glb) atomically."""
+def write_bake(path, bake: Bake, inputs=()):
+    """Writes `bake` to `path` (.glb) atomically, never over one of `inputs`."""
     from .. import __version__
     from ..scene.gltf_write import GltfBuilder
     b = GltfBuilder()
@@ -114,7 +116,7 @@ def write_bake(path, bake: Bake):
     if scene.sky is not None:
         root["sky"] = {"radiance": [float(v) for v in scene.sky.radiance], "hemisphere": bool(scene.sky.hemisphere)}
     extras = {"voxgi": {"formatVersion": FORMAT_VERSION, "version": __version__, **_jsonable(bake.meta)}}
-    b.save(path, extensions={EXTENSION: root}, extras=extras, checksum_key="voxgi")
+    b.save(path, extensions={EXTENSION: root}, extras=extras, checksum_key="voxgi", inputs=inputs)
     return path
 
 
@@ -154,64 +156,103 @@ def _chunks(data: bytes, path):
     return doc, blob
 
 
+def _index(value, count, what):
+    """An index read from the bake file, checked to lie in 0..count-1."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < count:
+        raise ValueError(f"{what} {value!r} out of range (0..{count - 1})")
+    return value
+
+
 def read_bake(path) -> Bake:
     """Reads and validates a bake file; BakeFileError (one line) if it is
     missing, damaged, altered, not a voxgi bake or of another format
-    version."""
+    version. The geometry is taken as the bake wrote it (no second
+    clean-up), every index checked before use."""
     path = str(path)
+    _refuse_scene(path)
     if not os.path.isfile(path):
-        raise BakeFileError("file not found" if not os.path.exists(path) else "not a file", path)
-    with open(path, "rb") as f:
-        data = f.read()
+        raise BakeFileError("file not found" if not os.path.exists(path) else "not a regular file", path)
+    from ..scene.refs import read_file
+    from ..errors import SceneError
+    try:
+        data = read_file(path, None, path, "the bake")
+    except SceneError as e:
+        raise BakeFileError(str(e), path) from None
     doc, blob = _chunks(data, path)
-    info = (doc.get("extras") or {}).get("voxgi")
-    root = (doc.get("extensions") or {}).get(EXTENSION)
+    info = (doc.get("extras") or {}).get("voxgi") if isinstance(doc.get("extras"), dict) else None
+    root = (doc.get("extensions") or {}).get(EXTENSION) if isinstance(doc.get("extensions"), dict) else None
     if not isinstance(info, dict) or not isinstance(root, dict):
         raise BakeFileError("a glTF file, but not a voxgi bake (no VOXGI_lightmap data): bake it with "
                             "`voxbake bake`", path)
-    if info.get("formatVersion") != FORMAT_VERSION or root.get("version") != FORMAT_VERSION:
-        raise BakeFileError(f"bake format version {info.get('formatVersion')!r}, this voxgi reads version "
-                            f"{FORMAT_VERSION}: bake the scene again", path)
-    if hashlib.sha256(blob).hexdigest() != info.get("binSha256"):
-        raise BakeFileError("damaged or altered (the binary data's checksum does not match)", path)
-    from ..scene.load import _validate
+    for version in (info.get("formatVersion"), root.get("version")):
+        if version != FORMAT_VERSION:
+            raise BakeFileError(f"bake format version {version!r}, this voxgi reads version {FORMAT_VERSION}: "
+                                f"bake the scene again", path)
+    from ..scene.gltf_write import file_checksum
+    if file_checksum(data, info.get("fileSha256")) != info.get("fileSha256"):
+        raise BakeFileError("damaged or altered (the file's checksum does not match)", path)
     from ..scene.gltf_read import read_gltf
-    from ..errors import SceneError
+    from ..scene.load import scene_from_parts
     try:
         parts = read_gltf(path)
+        uv1 = parts.pop("uvs1")
+        exts = parts.pop("material_extensions")
+        if uv1 is None:
+            raise BakeFileError("a primitive has no lightmap UVs (TEXCOORD_1)", path)
+        scene = scene_from_parts(path, clean=False, **{k: v for k, v in parts.items() if k != "notes"})
     except SceneError as e:
-        raise BakeFileError(f"damaged bake file ({e})", path) from None
-    uv1 = parts.pop("uvs1")
-    exts = parts.pop("material_extensions")
-    if uv1 is None:
-        raise BakeFileError("a primitive has no lightmap UVs (TEXCOORD_1)", path)
+        raise BakeFileError(f"damaged bake file ({e.args[0]})", path) from None
     try:
-        mat_page = np.array([e[EXTENSION]["page"] for e in exts], np.int32)
-        pages = [_read_exr_page(blob, doc, entry) for entry in root["pages"]]
-        scale = np.array([float(e["scale"]) for e in root["pages"]], np.float32)
+        entries = root["pages"]
+        if not isinstance(entries, list) or not entries:
+            raise BakeFileError("the bake holds no lightmap pages", path)
+        mat_page = np.array([_index((e or {}).get(EXTENSION, {}).get("page"), len(entries), "material's page")
+                             for e in exts], np.int32)
+        pages = [_read_exr_page(blob, doc, entry) for entry in entries]
+        scale = np.array([float(e["scale"]) for e in entries], np.float32)
         exr_scale = float(root.get("exrScale", 1.0))
-    except (KeyError, TypeError, ValueError, IndexError) as e:
+        if not (np.isfinite(scale).all() and (scale > 0).all() and np.isfinite(exr_scale) and exr_scale > 0):
+            raise ValueError("page scales must be finite and positive")
+        if len({p.shape for p in pages}) != 1:
+            raise ValueError("pages of different sizes")
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
         raise BakeFileError(f"damaged lightmap data ({type(e).__name__}: {e})", path) from None
-    if not pages:
-        raise BakeFileError("the bake holds no lightmap pages", path)
     pages = np.stack(pages) / exr_scale
-    import warnings
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scene = _validate(path, **{k: v for k, v in parts.items() if k != "notes"})
     if len(scene.triangles) * 3 != len(uv1):
         raise BakeFileError("triangles and lightmap UVs disagree (the file drops or merges triangles)", path)
     page = mat_page[scene.material_ids]
-    if page.size and (page.min() < 0 or page.max() >= len(pages)):
-        raise BakeFileError("a material names a lightmap page the file does not hold", path)
     if not np.isfinite(pages).all() or pages.min() < 0:
         raise BakeFileError("lightmap pages hold negative or non-finite values", path)
-    meta = {k: v for k, v in info.items() if k not in ("binSha256",)}
+    if not np.isfinite(uv1).all():
+        raise BakeFileError("lightmap UVs are not finite", path)
+    meta = {k: v for k, v in info.items() if k not in ("fileSha256",)}
     try:
         vpls = _read_vpls(blob, doc, root.get("vpls"))
-    except (KeyError, TypeError, ValueError, IndexError) as e:
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
         raise BakeFileError(f"damaged VPL list ({type(e).__name__}: {e})", path) from None
     return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls)
+
+
+def _view_bytes(blob, doc, index):
+    """The bytes of bufferView `index` of the bake's binary chunk, checked."""
+    views = doc.get("bufferViews") or []
+    view = views[_index(index, len(views), "bufferView")]
+    start, n = view.get("byteOffset", 0), view["byteLength"]
+    if not all(isinstance(v, int) and v >= 0 for v in (start, n)) or start + n > len(blob):
+        raise ValueError(f"bufferView {index} lies outside the binary chunk")
+    return blob[start:start + n]
+
+
+def _refuse_scene(path):
+    """A scene (a built-in name, an OBJ, PLY or .gltf file) where a bake is
+    expected: say what is needed and how to make it."""
+    from ..scene.load import builtin_scenes
+    stem, ext = os.path.splitext(os.path.basename(path))
+    named = not os.path.exists(path) and path in builtin_scenes()
+    if named or (os.path.isfile(path) and ext.lower() in (".obj", ".ply", ".gltf")):
+        what = "a built-in scene" if named else "a scene file"
+        raise BakeFileError(f"{what}, not a bake file: a bake file (.glb) is needed; make one with "
+                            f"`voxbake bake {path} -o {stem}.glb`", path)
 
 
 def _read_vpls(blob, doc, entry):
@@ -220,27 +261,41 @@ def _read_vpls(blob, doc, entry):
     from ..lights.vpl import VPLs
     if list(entry["fields"]) != list(VPL_FIELDS):
         raise ValueError(f"fields {entry['fields']}")
-    view = doc["bufferViews"][entry["bufferView"]]
-    start = view.get("byteOffset", 0)
-    n = int(entry["count"])
-    rows = np.frombuffer(blob, np.float32, count=n * len(VPL_FIELDS), offset=start).reshape(n, len(VPL_FIELDS))
+    data = _view_bytes(blob, doc, entry["bufferView"])
+    n = entry["count"]
+    if not isinstance(n, int) or n < 0 or n * len(VPL_FIELDS) * 4 > len(data):
+        raise ValueError(f"count {n!r} does not fit its bufferView")
+    rows = np.frombuffer(data, np.float32, count=n * len(VPL_FIELDS)).reshape(n, len(VPL_FIELDS))
     rows = rows.astype(np.float64)
     if not np.isfinite(rows).all():
         raise ValueError("non-finite values")
-    return VPLs(rows[:, 10].astype(np.int8), rows[:, 0:3].copy(), rows[:, 3:6].copy(), rows[:, 6:9].copy(),
-                rows[:, 9].copy(), rows[:, 11] > 0.5)
+    field = {name: rows[:, i] for i, name in enumerate(VPL_FIELDS)}
+    kind = field["kind"]
+    if (kind != np.rint(kind)).any() or kind.min(initial=0) < 0 or kind.max(initial=0) > 127:
+        raise ValueError("VPL kinds out of range")
+    if min(field["area"].min(initial=0), rows[:, 6:9].min(initial=0)) < 0:
+        raise ValueError("negative VPL power or area")
+    return VPLs(kind.astype(np.int8), rows[:, 0:3].copy(), rows[:, 3:6].copy(), rows[:, 6:9].copy(),
+                field["area"].copy(), field["indirect"] > 0.5)
+
+
+MAX_PAGE = 16384  # texels on a page's side: far above what the packer writes (512)
 
 
 def _read_exr_page(blob, doc, entry):
     import OpenEXR
-    view = doc["bufferViews"][entry["bufferView"]]
-    start = view.get("byteOffset", 0)
-    data = blob[start:start + view["byteLength"]]
+    n = entry["size"]
+    if not isinstance(n, int) or not 1 <= n <= MAX_PAGE:
+        raise ValueError(f"page size {n!r} out of range (1..{MAX_PAGE})")
+    data = _view_bytes(blob, doc, entry["bufferView"])
+    with OpenEXR.File(io.BytesIO(data), header_only=True) as f:
+        (x0, y0), (x1, y1) = f.header()["dataWindow"]
+    if (x1 - x0 + 1, y1 - y0 + 1) != (n, n):
+        raise ValueError(f"page of {x1 - x0 + 1}x{y1 - y0 + 1} texels, expected {n}x{n}")
     with OpenEXR.File(io.BytesIO(data)) as f:
         ch = f.channels()
         rgb = ch["RGB"].pixels if "RGB" in ch else np.stack([ch[c].pixels for c in "RGB"], axis=-1)
     rgb = np.asarray(rgb, np.float32)
-    n = int(entry["size"])
     if rgb.shape != (n, n, 3):
         raise ValueError(f"page of shape {rgb.shape}, expected {(n, n, 3)}")
     return rgb

@@ -45,6 +45,8 @@ def write_image(path, image: np.ndarray, exposure_ev=None):
     """Writes .exr (linear float32) or .png (tone-mapped sRGB), atomically."""
     ext = os.path.splitext(path)[1].lower()
     image = np.ascontiguousarray(image, np.float32)
+    if exposure_ev is not None and not -64 <= exposure_ev <= 64:
+        raise VoxgiError(f"exposure must be a finite number of EV in -64..64 (got {exposure_ev})", path)
     if ext == ".exr":
         import OpenEXR
 

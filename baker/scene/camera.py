@@ -13,9 +13,9 @@ ROOM_FOV = np.radians(70.0)
 OBJECT_FOV = np.radians(45.0)
 
 
-def _escape_fraction(bvh, centre, lo, hi, axis, sign):
-    """Share of the rays from `centre` to a grid of points on the face of the
-    bounds (axis, sign) that reach it without a hit."""
+def _face_rays(centre, lo, hi, axis, sign):
+    """Unit directions from `centre` to a grid of points just past the face
+    of the bounds (axis, sign), and the distances to those points."""
     g = (np.arange(SIDE_RAYS) + 0.5) / SIDE_RAYS
     a1, a2 = (axis + 1) % 3, (axis + 2) % 3
     u, v = np.meshgrid(g, g, indexing="ij")
@@ -26,8 +26,47 @@ def _escape_fraction(bvh, centre, lo, hi, axis, sign):
     pts[:, a2] = lo[a2] + v.ravel() * (hi[a2] - lo[a2])
     d = pts - centre
     dist = np.linalg.norm(d, axis=1)
-    t, tri, _, _ = bvh.closest(np.broadcast_to(centre, d.shape), d / dist[:, None], 0.0, dist)
+    return d / dist[:, None], dist
+
+
+def _escape_fraction(bvh, centre, lo, hi, axis, sign):
+    """Share of the rays from `centre` to a grid of points on the face of the
+    bounds (axis, sign) that reach it without a hit."""
+    d, dist = _face_rays(centre, lo, hi, axis, sign)
+    t, tri, _, _ = bvh.closest(np.broadcast_to(centre, d.shape), d, 0.0, dist)
     return float(np.mean(tri < 0))
+
+
+def encloses_centre_from_inside(scene: Scene, bvh, centre, lo, hi) -> bool:
+    """Is the closed surface around the bounds' centre a body the centre
+    lies inside (a scan, a closed box seen from outside) rather than a room?
+
+    A room's walls face its inside: rays from the centre meet their front
+    faces. A closed body's surface faces away from its inside: rays from a
+    point within meet its back faces (a scan read two-sided keeps its
+    winding). Where the winding says nothing clear (under two thirds of
+    the hits agree), the distances decide: a room's walls lie on the
+    bounds, a body enclosing the centre mostly well inside them.
+    """
+    dirs, dists = [], []
+    for axis in range(3):
+        for sign in (-1, 1):
+            d, dist = _face_rays(centre, lo, hi, axis, sign)
+            dirs.append(d)
+            dists.append(dist)
+    d, dist = np.concatenate(dirs), np.concatenate(dists)
+    t, tri, _, _ = bvh.closest(np.broadcast_to(centre, d.shape), d, 0.0, dist)
+    hit = tri >= 0
+    if not hit.any():
+        return False
+    c = scene.vertices[scene.triangles[tri[hit]]].astype(np.float64)
+    normal = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    back = float(np.mean(np.einsum("ij,ij->i", normal, d[hit]) > 0))
+    if back >= 2 / 3:
+        return True
+    if back <= 1 / 3:
+        return False
+    return float(np.median(t[hit] / dist[hit])) < 0.75
 
 
 def auto_camera(scene: Scene, bvh=None) -> Camera:
@@ -37,6 +76,8 @@ def auto_camera(scene: Scene, bvh=None) -> Camera:
       (-Z) and a little above, framing the bounds;
     - a box with an open side (the classic Cornell box OBJ has no front
       wall): outside that side, looking in through it, framing the side;
+    - a closed body around the bounds' centre (a scanned statue, a closed
+      box): from outside, as an object (`encloses_centre_from_inside`);
     - a closed room: inside, at the centre of the bounds pulled back from
       the far wall, looking at it along the longest free horizontal line.
     """
@@ -49,10 +90,9 @@ def auto_camera(scene: Scene, bvh=None) -> Camera:
     openness = {s: _escape_fraction(bvh, centre, lo, hi, *s) for s in sides}
     open_sides = [s for s in sides if openness[s] >= OPEN_SIDE]
     if len(open_sides) == len(sides) or not open_sides:
-        if open_sides:  # an object: the old default view
-            r = float(np.linalg.norm(size)) / 2
+        if open_sides or encloses_centre_from_inside(scene, bvh, centre, lo, hi):  # an object: from outside
             d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
-            pos = centre + d * r / np.tan(OBJECT_FOV / 2) * 1.1
+            pos = centre + d * _framing_distance(scene.vertices, centre, d, OBJECT_FOV)
             return make_camera("auto", pos, centre - pos, (0, 1, 0), OBJECT_FOV)
         return _room_camera(bvh, centre, size)
     axis, sign = max(open_sides, key=lambda s: (openness[s], s[0] != 1))  # prefer a wall to the ceiling
@@ -65,6 +105,21 @@ def auto_camera(scene: Scene, bvh=None) -> Camera:
     pos = face + out * (half / np.tan(OBJECT_FOV / 2))
     up = (0, 0, 1) if axis == 1 else (0, 1, 0)
     return make_camera("auto", pos, -out, up, OBJECT_FOV)
+
+
+def _framing_distance(vertices, centre, towards, fov, margin=1.15) -> float:
+    """The distance from `centre` along `towards` (unit) at which a camera
+    looking back at the centre, with a square field of view `fov`, sees
+    every vertex: vertex v at lateral offset l and depth z past the centre
+    needs l <= tan(fov / 2) (D + z)."""
+    rel = np.asarray(vertices, np.float64) - centre
+    depth = -rel @ towards  # how far beyond the centre, seen from the camera
+    up = np.array([0.0, 1.0, 0.0]) - towards[1] * towards
+    up /= np.linalg.norm(up)
+    right = np.cross(towards, up)
+    lateral = np.maximum(np.abs(rel @ up), np.abs(rel @ right))
+    need = lateral / np.tan(fov / 2) - depth
+    return margin * max(float(need.max()), 1e-9)
 
 
 def _room_camera(bvh, centre, size):

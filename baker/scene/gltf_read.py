@@ -16,56 +16,125 @@ import numpy as np
 
 from ..errors import SceneError
 from .model import PunctualLight, make_camera, make_material
-from .textures import image_to_albedo
+from .refs import LoadLimits, read_file, resolve_reference
+from .textures import decode_texture
 
 _COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_INDEX_TYPES = (5121, 5123, 5125)  # glTF 3.7.2.1: indices are unsigned integers
+LOAD_BYTES_PER_TRIANGLE = 600  # what a triangle costs through loading and clean-up (corners, normals, cuts)
+MAX_NODE_INSTANCES = 1_000_000  # a node graph sharing children can instance a mesh exponentially often
 
 
-def _buffers(doc, path):
+def _int(value, what, path, lo=0, hi=1 << 62):
+    """An integer field of the file in lo..hi; SceneError naming it otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise SceneError(f"{what} is {value!r}, expected an integer in {lo}..{hi}", path)
+    return value
+
+
+def _item(items, index, what, path):
+    """items[index] for an index read from the file, checked."""
+    items = items or []
+    _int(index, f"{what} index", path, 0, max(len(items) - 1, 0))
+    if not items:
+        raise SceneError(f"{what} {index} does not exist (the file has none)", path)
+    return items[index]
+
+
+def _buffers(doc, path, limits: LoadLimits, file_size: int):
+    """The bytes of every buffer, each checked against its stated byteLength
+    before it is read (at most byteLength bytes of a file are read)."""
     out = []
-    for i, buf in enumerate(doc.buffers):
+    for i, buf in enumerate(doc.buffers or []):
+        n = _int(buf.byteLength, f"buffer {i} byteLength", path, 1)
         if buf.uri is None:
-            blob = doc.binary_blob()
+            blob = doc.binary_blob() if i == 0 else None
             if blob is None:
-                raise SceneError("buffer 0 has no GLB binary chunk (truncated file?)", path)
-            out.append(blob)
+                raise SceneError(f"buffer {i} has no uri and no GLB binary chunk (truncated file?)", path)
+            data = blob
+        elif not isinstance(buf.uri, str):
+            raise SceneError(f"buffer {i} uri is not a string", path)
         elif buf.uri.startswith("data:"):
             import base64
-            out.append(base64.b64decode(buf.uri.split(",", 1)[1]))
+            import binascii
+            head, _, body = buf.uri.partition(",")
+            if not head.endswith(";base64") or len(body) * 3 // 4 + 3 < n:
+                raise SceneError(f"buffer {i}: a data URI of fewer bytes than its byteLength {n}", path)
+            try:
+                data = base64.b64decode(body, validate=True)
+            except (binascii.Error, ValueError):
+                raise SceneError(f"buffer {i}: damaged base64 data URI", path) from None
         else:
-            p = os.path.join(os.path.dirname(path), buf.uri)
-            if not os.path.exists(p):
-                raise SceneError(f"buffer {i} file {buf.uri!r} not found", path)
-            with open(p, "rb") as f:
-                out.append(f.read())
-        if len(out[-1]) < (buf.byteLength or 0):
-            raise SceneError(f"buffer {i} holds {len(out[-1])} bytes, the file says {buf.byteLength} (truncated?)",
-                             path)
+            target = resolve_reference(buf.uri, path, f"buffer {i} uri", limits, encoded=True)
+            size = os.path.getsize(target)
+            if size < n:
+                raise SceneError(f"buffer {i} file {buf.uri!r} holds {size} bytes, the file says {n} (truncated?)",
+                                 path)
+            limits.check_bytes(n, f"buffer {i}", path)
+            data = read_file(target, n, path, f"buffer {i} uri {buf.uri!r}")
+        if len(data) < n:
+            raise SceneError(f"buffer {i} holds {len(data)} bytes, the file says {n} (truncated?)", path)
+        out.append(memoryview(data)[:n])
+    limits.check_bytes(sum(len(b) for b in out) + file_size, "the scene's buffers", path)
     return out
 
 
-def _accessor(doc, bufs, index, path):
-    acc = doc.accessors[index]
+def _view(doc, bufs, index, path):
+    """The bytes of bufferView `index` and its stride (None: packed),
+    checked against its buffer."""
+    view = _item(doc.bufferViews, index, "bufferView", path)
+    buf = _int(view.buffer, f"bufferView {index} buffer", path, 0, max(len(bufs) - 1, 0))
+    if not bufs:
+        raise SceneError(f"bufferView {index} names buffer {buf}, the file has none", path)
+    off = _int(view.byteOffset or 0, f"bufferView {index} byteOffset", path)
+    n = _int(view.byteLength, f"bufferView {index} byteLength", path, 1)
+    if off + n > len(bufs[buf]):
+        raise SceneError(f"bufferView {index} spans bytes {off}..{off + n} of buffer {buf}, which holds "
+                         f"{len(bufs[buf])}", path)
+    stride = None if view.byteStride is None else _int(view.byteStride, f"bufferView {index} byteStride", path,
+                                                       4, 252)
+    return bufs[buf][off:off + n], stride
+
+
+def _accessor(doc, bufs, index, path, what, components=tuple(_COMPONENT), types=tuple(_WIDTH), zeros_limit=0):
+    """(count, width) array of accessor `index`, read as `what`: its
+    component type and type must be among those given, and count x stride
+    must lie within its bufferView. An accessor without a bufferView is
+    zeros (glTF 3.6.2.3), allowed only up to `zeros_limit` bytes."""
+    acc = _item(doc.accessors, index, f"{what} accessor", path)
+    name = f"accessor {index} ({what})"
     if acc.sparse is not None:
-        raise SceneError(f"accessor {index}: sparse accessors are not supported", path)
+        raise SceneError(f"{name}: sparse accessors are not supported", path)
+    if acc.componentType not in components:
+        raise SceneError(f"{name}: componentType {acc.componentType!r} is not allowed here (allowed: "
+                         f"{', '.join(map(str, components))})", path)
+    if acc.type not in types:
+        raise SceneError(f"{name}: type {acc.type!r} is not allowed here (allowed: {', '.join(types)})", path)
+    count = _int(acc.count, f"{name} count", path, 1)
     dtype = np.dtype(_COMPONENT[acc.componentType])
     width = _WIDTH[acc.type]
+    elem = dtype.itemsize * width
     if acc.bufferView is None:
-        return np.zeros((acc.count, width), dtype)
-    view = doc.bufferViews[acc.bufferView]
-    data = bufs[view.buffer]
-    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
-    stride = view.byteStride or dtype.itemsize * width
-    end = start + stride * (acc.count - 1) + dtype.itemsize * width if acc.count else start
+        if count * elem > zeros_limit:
+            raise SceneError(f"{name}: {count} elements with no bufferView (all zeros), more than the file's "
+                             f"bytes", path)
+        return np.zeros((count, width), dtype)
+    data, stride = _view(doc, bufs, acc.bufferView, path)
+    stride = stride or elem
+    if stride < elem:
+        raise SceneError(f"{name}: byteStride {stride} is smaller than an element ({elem} bytes)", path)
+    start = _int(acc.byteOffset or 0, f"{name} byteOffset", path)
+    end = start + stride * (count - 1) + elem
     if end > len(data):
-        raise SceneError(f"accessor {index} reads past the end of its buffer (truncated file?)", path)
-    raw = np.frombuffer(data, np.uint8, count=end - start, offset=start) if acc.count else np.zeros(0, np.uint8)
-    if stride == dtype.itemsize * width:
-        arr = raw.view(dtype).reshape(acc.count, width)
+        raise SceneError(f"{name}: {count} elements need {end} bytes of bufferView {acc.bufferView}, which "
+                         f"holds {len(data)} (truncated file?)", path)
+    raw = np.frombuffer(data, np.uint8, count=end - start, offset=start)
+    if stride == elem:
+        arr = raw.view(dtype).reshape(count, width)
     else:
-        rows = np.lib.stride_tricks.as_strided(raw, (acc.count, dtype.itemsize * width), (stride, 1))
-        arr = np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width)
+        rows = np.lib.stride_tricks.as_strided(raw, (count, elem), (stride, 1))
+        arr = np.ascontiguousarray(rows).view(dtype).reshape(count, width)
     if acc.normalized and dtype.kind in "iu":
         arr = arr.astype(np.float32) / np.iinfo(dtype).max
     return arr
@@ -87,42 +156,57 @@ def _node_matrix(node):
     return m
 
 
-def _world_nodes(doc):
+def _world_nodes(doc, path):
     """Yields (node index, world matrix) over the default scene's hierarchy."""
+    nodes = doc.nodes or []
     if doc.scenes:
-        roots = doc.scenes[doc.scene or 0].nodes or []
+        roots = _item(doc.scenes, doc.scene or 0, "scene", path).nodes or []
     else:
-        children = {c for n in doc.nodes for c in (n.children or [])}
-        roots = [i for i in range(len(doc.nodes)) if i not in children]
+        children = {c for n in nodes for c in (n.children or []) if isinstance(c, int)}
+        roots = [i for i in range(len(nodes)) if i not in children]
+    for i in roots:
+        _item(nodes, i, "scene root node", path)
     stack = [(i, np.eye(4), 0) for i in reversed(roots)]  # depth-first, document order
+    seen = 0
     while stack:
         i, parent, depth = stack.pop()
+        seen += 1
         if depth > 256:
-            raise SceneError("node hierarchy deeper than 256 (a cycle?)")
-        world = parent @ _node_matrix(doc.nodes[i])
+            raise SceneError("node hierarchy deeper than 256 (a cycle?)", path)
+        if seen > MAX_NODE_INSTANCES:
+            raise SceneError(f"more than {MAX_NODE_INSTANCES} node instances (shared children repeated?)", path)
+        world = parent @ _node_matrix(nodes[i])
+        if not np.isfinite(world).all():
+            raise SceneError(f"node {i}: its transform is not finite", path)
         yield i, world
-        stack.extend((c, world, depth + 1) for c in reversed(doc.nodes[i].children or []))
+        children = nodes[i].children or []
+        for c in children:
+            _item(nodes, c, f"node {i} child", path)
+        stack.extend((c, world, depth + 1) for c in reversed(children))
 
 
-def _texture(doc, bufs, tex_index, path, folder):
-    from PIL import Image
-    tex = doc.textures[tex_index]
+def _texture(doc, bufs, tex_index, path, limits):
+    """(albedo array or None, note or None) of texture `tex_index`."""
+    tex = _item(doc.textures, tex_index, "texture", path)
     if tex.source is None:
-        return None
-    img = doc.images[tex.source]
+        return None, None
+    img = _item(doc.images, tex.source, "image", path)
+    what = f"image {tex.source}"
     if img.bufferView is not None:
-        view = doc.bufferViews[img.bufferView]
-        start = view.byteOffset or 0
-        data = bufs[view.buffer][start:start + view.byteLength]
-    elif img.uri and img.uri.startswith("data:"):
+        data = bytes(_view(doc, bufs, img.bufferView, path)[0])
+    elif isinstance(img.uri, str) and img.uri.startswith("data:"):
         import base64
-        data = base64.b64decode(img.uri.split(",", 1)[1])
-    elif img.uri:
-        with open(os.path.join(folder, img.uri), "rb") as f:
-            data = f.read()
+        import binascii
+        try:
+            data = base64.b64decode(img.uri.split(",", 1)[1], validate=True)
+        except (binascii.Error, ValueError, IndexError):
+            raise SceneError(f"{what}: damaged base64 data URI", path) from None
+    elif isinstance(img.uri, str) and img.uri:
+        target = resolve_reference(img.uri, path, f"{what} uri", limits, encoded=True)
+        data = read_file(target, None, path, f"{what} uri {img.uri!r}")
     else:
-        return None
-    return image_to_albedo(Image.open(io.BytesIO(data)))
+        return None, None
+    return decode_texture(data, what, path, limits)
 
 
 # material extensions whose effect a diffuse baker drops
@@ -148,74 +232,148 @@ def ignored_terms(m) -> list:
     return out
 
 
-def read_gltf(path):
-    import pygltflib
+_SUPPORTED_REQUIRED = {"KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
+                       "KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_clearcoat",
+                       "KHR_materials_sheen", "KHR_materials_specular", "KHR_materials_iridescence",
+                       "KHR_materials_ior", "KHR_materials_unlit"}
+
+
+def _finite(values, what, path, n, lo=-np.inf):
+    """n finite numbers >= lo from the file, as float64."""
     try:
-        doc = pygltflib.GLTF2().load(path)
+        v = np.asarray(values, float).reshape(-1)
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} is not a list of numbers", path) from None
+    if len(v) < n or not np.isfinite(v[:n]).all() or (v[:n] < lo).any():
+        raise SceneError(f"{what} needs {n} finite numbers{f' >= {lo:g}' if lo > -np.inf else ''}", path)
+    return v[:n]
+
+
+def _check_glb_header(path):
+    """SceneError unless the file starts with a GLB header (magic, version
+    2) whose length is the file's."""
+    import struct
+    with open(path, "rb") as f:
+        head = f.read(12)
+    size = os.path.getsize(path)
+    if len(head) < 12 or head[:4] != b"glTF":
+        raise SceneError("not a glTF binary file (no 'glTF' magic)", path)
+    version, length = struct.unpack_from("<II", head, 4)
+    if version != 2:
+        raise SceneError(f"glTF binary container version {version}; voxgi reads version 2", path)
+    if length != size:
+        raise SceneError(f"the header says {length} bytes, the file has {size} (truncated or padded?)", path)
+
+
+def read_gltf(path, limits: LoadLimits = LoadLimits()):
+    """The parts of a Scene from a .gltf/.glb file, every index and size in
+    it checked before use (refs.py: what it may make us read)."""
+    import warnings
+
+    import pygltflib
+    if str(path).lower().endswith(".glb"):
+        _check_glb_header(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # pygltflib's own notes on odd files: our checks below speak instead
+            doc = pygltflib.GLTF2().load(path)
     except Exception as e:
-        raise SceneError(f"not a valid glTF file ({type(e).__name__}: {str(e)[:120]})", path) from e
+        raise SceneError(f"not a valid glTF file ({type(e).__name__})", path) from None
     if doc is None:
         raise SceneError("not a valid glTF file", path)
-    bufs = _buffers(doc, path)
-    folder = os.path.dirname(path)
-    materials, ignored = [], {}
+    version = str(getattr(doc.asset, "version", "") or "")
+    if version.split(".")[0] != "2":
+        raise SceneError(f"glTF version {version!r}; voxgi reads glTF 2.x", path)
+    unsupported = sorted(set(doc.extensionsRequired or []) - _SUPPORTED_REQUIRED)
+    if unsupported:
+        raise SceneError(f"the file requires the glTF extension{'s' * (len(unsupported) > 1)} "
+                         f"{', '.join(unsupported)}, which voxgi does not read (decompress or re-export the "
+                         f"file without it)", path)
+    quantized = "KHR_mesh_quantization" in (doc.extensionsUsed or [])
+    vector_types = tuple(_COMPONENT) if quantized else (5126,)
+    file_size = os.path.getsize(path)
+    bufs = _buffers(doc, path, limits, file_size)
+    materials, ignored, notes = [], {}, []
     for i, m in enumerate(doc.materials or []):
         pbr = m.pbrMetallicRoughness
-        albedo = (pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1])[:3]
+        albedo = _finite(pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1],
+                         f"material {i} baseColorFactor", path, 3, 0.0)
         strength = 1.0
         ext = (m.extensions or {}).get("KHR_materials_emissive_strength")
         if ext:
-            strength = float(ext.get("emissiveStrength", 1.0))
-        emission = np.asarray(m.emissiveFactor or [0, 0, 0], float) * strength
+            strength = float(_finite([ext.get("emissiveStrength", 1.0)], f"material {i} emissiveStrength", path,
+                                     1, 0.0)[0])
+        emission = _finite(m.emissiveFactor or [0, 0, 0], f"material {i} emissiveFactor", path, 3, 0.0) * strength
         tex = None
         if pbr and pbr.baseColorTexture is not None:
-            tex = _texture(doc, bufs, pbr.baseColorTexture.index, path, folder)
-        name = m.name or f"material_{i}"
+            tex, note = _texture(doc, bufs, pbr.baseColorTexture.index, path, limits)
+            if note:
+                notes.append(note)
+        name = m.name if isinstance(m.name, str) and m.name else f"material_{i}"
         materials.append(make_material(name, albedo, emission, bool(m.doubleSided), tex))
         for what in ignored_terms(m):
             ignored.setdefault(what, []).append(name)
+    n_file_materials = len(materials)
     default_index = None
     verts, tris, mids, norms, uvs, uvs1 = [], [], [], [], [], []
     has_normals = has_uvs = has_uvs1 = True
     offset = 0
     cameras, lights = [], []
     light_defs = ((doc.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
-    for ni, world in _world_nodes(doc):
+    zeros_limit = file_size
+    for ni, world in _world_nodes(doc, path):
         node = doc.nodes[ni]
         if node.camera is not None:
-            cam = doc.cameras[node.camera]
+            cam = _item(doc.cameras, node.camera, f"node {ni} camera", path)
             if cam.type == "perspective" and cam.perspective is not None:
+                yfov = float(_finite([cam.perspective.yfov], f"camera {node.camera} yfov", path, 1, 0.0)[0])
+                aspect = cam.perspective.aspectRatio
+                if aspect is not None:
+                    aspect = float(_finite([aspect], f"camera {node.camera} aspectRatio", path, 1, 0.0)[0])
+                if not 0 < yfov < np.pi or aspect == 0:
+                    raise SceneError(f"camera {node.camera}: yfov {yfov} or aspect ratio {aspect} out of range",
+                                     path)
                 r = world[:3, :3]
                 cameras.append(make_camera(node.name or cam.name or f"camera_{len(cameras)}", world[:3, 3],
-                                           -r[:, 2], r[:, 1], cam.perspective.yfov, cam.perspective.aspectRatio))
+                                           -r[:, 2], r[:, 1], yfov, aspect))
         lext = (node.extensions or {}).get("KHR_lights_punctual")
         if lext is not None:
-            d = light_defs[lext["light"]]
-            color = np.asarray(d.get("color", [1, 1, 1]), float) * float(d.get("intensity", 1.0))
+            d = _item(light_defs, lext.get("light") if isinstance(lext, dict) else None, f"node {ni} light", path)
+            kind = d.get("type") if isinstance(d, dict) else None
+            if kind not in ("directional", "point", "spot"):
+                raise SceneError(f"node {ni}: light type {kind!r} (directional, point or spot)", path)
+            color = _finite(d.get("color", [1, 1, 1]), f"light {lext['light']} color", path, 3, 0.0) * \
+                _finite([d.get("intensity", 1.0)], f"light {lext['light']} intensity", path, 1, 0.0)[0]
             r = world[:3, :3]
-            direction = -r[:, 2] / np.linalg.norm(r[:, 2])
-            spot = d.get("spot", {})
-            lights.append(PunctualLight(d.get("name") or node.name or f"light_{len(lights)}", d["type"], color,
-                                        world[:3, 3].copy(), direction, float(spot.get("innerConeAngle", 0.0)),
-                                        float(spot.get("outerConeAngle", np.pi / 4))))
+            direction = -r[:, 2] / max(np.linalg.norm(r[:, 2]), 1e-300)
+            spot = d.get("spot", {}) if isinstance(d.get("spot", {}), dict) else {}
+            cones = _finite([spot.get("innerConeAngle", 0.0), spot.get("outerConeAngle", np.pi / 4)],
+                            f"light {lext['light']} spot cone", path, 2, 0.0)
+            lights.append(PunctualLight(str(d.get("name") or node.name or f"light_{len(lights)}"), kind, color,
+                                        world[:3, 3].copy(), direction, float(cones[0]), float(cones[1])))
         if node.mesh is None:
             continue
-        normal_matrix = np.linalg.inv(world[:3, :3]).T
+        mesh = _item(doc.meshes, node.mesh, f"node {ni} mesh", path)
+        normal_matrix = np.linalg.inv(world[:3, :3]).T if np.linalg.det(world[:3, :3]) != 0 else np.eye(3)
         flip = np.linalg.det(world[:3, :3]) < 0  # mirrored nodes reverse the winding (glTF spec 3.7.4)
-        for prim in doc.meshes[node.mesh].primitives:
+        for prim in mesh.primitives or []:
             mode = 4 if prim.mode is None else prim.mode
             if mode not in (4, 5, 6):
                 continue  # points and lines have no area
-            pos = _accessor(doc, bufs, prim.attributes.POSITION, path).astype(np.float64)
+            if prim.attributes.POSITION is None:
+                raise SceneError(f"mesh {node.mesh}: a primitive without POSITION", path)
+            pos = _accessor(doc, bufs, prim.attributes.POSITION, path, "POSITION", vector_types, ("VEC3",),
+                            zeros_limit).astype(np.float64)
             if prim.indices is not None:
-                idx = _accessor(doc, bufs, prim.indices, path).reshape(-1).astype(np.int64)
+                idx = _accessor(doc, bufs, prim.indices, path, "indices", _INDEX_TYPES, ("SCALAR",),
+                                zeros_limit).reshape(-1).astype(np.int64)
             else:
                 idx = np.arange(len(pos))
             if mode == 5:
-                k = np.arange(len(idx) - 2)
+                k = np.arange(max(len(idx) - 2, 0))
                 t = np.stack([idx[k], idx[k + 1 + (k % 2)], idx[k + 2 - (k % 2)]], axis=1)
             elif mode == 6:
-                k = np.arange(1, len(idx) - 1)
+                k = np.arange(1, max(len(idx) - 1, 1))
                 t = np.stack([np.full(len(k), idx[0]), idx[k], idx[k + 1]], axis=1)
             else:
                 if len(idx) % 3:
@@ -224,37 +382,47 @@ def read_gltf(path):
             if len(t) and (t.min() < 0 or t.max() >= len(pos)):
                 raise SceneError(f"mesh {node.mesh}: triangle indices out of range (0..{len(pos) - 1}, "
                                  f"found up to {t.max()})", path)
+            offset_t = sum(len(x) for x in tris) + len(t)
+            limits.check_bytes(float(offset_t) * LOAD_BYTES_PER_TRIANGLE, f"{offset_t} triangles", path)
             if flip:
                 t = t[:, ::-1]
             verts.append(pos @ world[:3, :3].T + world[:3, 3])
             if prim.attributes.NORMAL is not None:
-                n = _accessor(doc, bufs, prim.attributes.NORMAL, path).astype(np.float64) @ normal_matrix.T
+                n = _accessor(doc, bufs, prim.attributes.NORMAL, path, "NORMAL", vector_types, ("VEC3",),
+                              zeros_limit).astype(np.float64)
+                if len(n) != len(pos):
+                    raise SceneError(f"mesh {node.mesh}: {len(n)} normals for {len(pos)} positions", path)
+                n = n @ normal_matrix.T
                 n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
                 norms.append(n)
             else:
                 has_normals = False
-            if prim.attributes.TEXCOORD_0 is not None:
-                uvs.append(_accessor(doc, bufs, prim.attributes.TEXCOORD_0, path).astype(np.float32))
-            else:
-                has_uvs = False
-                uvs.append(np.zeros((len(pos), 2), np.float32))
-            if prim.attributes.TEXCOORD_1 is not None:
-                uvs1.append(_accessor(doc, bufs, prim.attributes.TEXCOORD_1, path).astype(np.float32))
-            else:
-                has_uvs1 = False
+            for slot, out in (("TEXCOORD_0", uvs), ("TEXCOORD_1", uvs1)):
+                ref = getattr(prim.attributes, slot)
+                if ref is not None:
+                    uv = _accessor(doc, bufs, ref, path, slot, (5126, 5121, 5123) if not quantized else
+                                   tuple(_COMPONENT), ("VEC2",), zeros_limit).astype(np.float32)
+                    if len(uv) != len(pos):
+                        raise SceneError(f"mesh {node.mesh}: {len(uv)} {slot} for {len(pos)} positions", path)
+                    out.append(uv)
+                elif slot == "TEXCOORD_0":
+                    has_uvs = False
+                    uvs.append(np.zeros((len(pos), 2), np.float32))
+                else:
+                    has_uvs1 = False
             if prim.material is None:
                 if default_index is None:
                     default_index = len(materials)
                     materials.append(make_material("default", (1, 1, 1)))
                 mid = default_index
             else:
-                mid = prim.material
+                mid = _int(prim.material, f"mesh {node.mesh} material index", path, 0, n_file_materials - 1) \
+                    if n_file_materials else _item([], prim.material, f"mesh {node.mesh} material", path)
             tris.append(t + offset)
             mids.append(np.full(len(t), mid))
             offset += len(pos)
     if not tris:
         raise SceneError("no triangles", path)
-    notes = []
     if ignored:
         said = "; ".join(f"{what} in {', '.join(repr(n) for n in names)}" for what, names in ignored.items())
         notes.append(f"{path}: the baker treats every surface as diffuse and ignores {said}")

@@ -180,11 +180,14 @@ class GltfBuilder:
                       extensions={"KHR_lights_punctual": {"light": len(self.lights) - 1}})
         return self._add_node(node)
 
-    def save(self, path, extensions=None, extras=None, checksum_key=None):
+    def save(self, path, extensions=None, extras=None, checksum_key=None, inputs=()):
         """Writes the .glb atomically (temporary file in the same folder, then
-        rename). `extensions`: more root extensions {name: data};
-        `extras`: the root's extras; `checksum_key`: if given, the SHA-256
-        of the binary chunk goes in extras[checksum_key]["binSha256"]."""
+        rename; never over one of `inputs`). `extensions`: more root
+        extensions {name: data}; `extras`: the root's extras; `checksum_key`:
+        if given, extras[checksum_key]["fileSha256"] holds the SHA-256 of the
+        whole file as written with those 64 hex digits as zeros
+        (`file_checksum`): the JSON and the binary chunk are both covered,
+        and the file stays plain glTF for every other reader."""
         import hashlib
         ext = {"KHR_lights_punctual": {"lights": self.lights}} if self.lights else {}
         ext.update(extensions or {})
@@ -197,10 +200,34 @@ class GltfBuilder:
         if extras is not None or checksum_key:
             extras = dict(extras or {})
             if checksum_key:
-                extras[checksum_key] = dict(extras.get(checksum_key, {}),
-                                            binSha256=hashlib.sha256(bytes(self.blob)).hexdigest())
+                extras[checksum_key] = dict(extras.get(checksum_key, {}), fileSha256=CHECKSUM_PLACEHOLDER)
             self.doc.extras = extras
         self.doc.buffers = [g.Buffer(byteLength=len(self.blob))]
         self.doc.set_binary_blob(bytes(self.blob))
-        atomic_write(path, self.doc.save_binary)
+        data = b"".join(self.doc.save_to_bytes())
+        if checksum_key:
+            digest = hashlib.sha256(data).hexdigest().encode()
+            assert data.count(CHECKSUM_PLACEHOLDER.encode()) == 1
+            data = data.replace(CHECKSUM_PLACEHOLDER.encode(), digest)
+
+        def write(tmp):
+            with open(tmp, "wb") as f:
+                f.write(data)
+        atomic_write(path, write, inputs)
         return path
+
+
+CHECKSUM_PLACEHOLDER = "0" * 64
+
+
+def file_checksum(data: bytes, stated: str):
+    """The SHA-256 of a .glb written by `save`, with the digest it states
+    (`stated`, 64 hex digits, found exactly once in the file) as zeros;
+    None if the stated digest is malformed or not found exactly once."""
+    import hashlib
+    import re
+    if not isinstance(stated, str) or not re.fullmatch(r"[0-9a-f]{64}", stated):
+        return None
+    if data.count(stated.encode()) != 1:
+        return None
+    return hashlib.sha256(data.replace(stated.encode(), CHECKSUM_PLACEHOLDER.encode())).hexdigest()

@@ -9,9 +9,10 @@ from importlib.resources import files
 
 import numpy as np
 
-from ..errors import SceneError, VoxgiWarning
+from ..errors import SceneError, VoxgiError, VoxgiWarning
 from .model import Scene, Sky, make_material
 from .overlaps import cut_overlaps
+from .refs import LoadLimits, check_regular, read_file
 
 FORMATS = (".glb", ".gltf", ".obj", ".ply")
 
@@ -45,50 +46,60 @@ def resolve(path) -> str:
     return path
 
 
-def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None) -> Scene:
+def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None,
+               limits: LoadLimits = LoadLimits()) -> Scene:
     """Loads a .gltf/.glb, .obj or .ply file (or a built-in scene by name)
     into a validated `Scene`, with extra punctual `lights` and a `sky` (a
     scanned model has no lamp of its own).
 
     OBJ and PLY carry no sidedness: they are double-sided unless `one_sided`.
-    Raises SceneError naming the file and the problem; what the file holds
-    that the baker ignores or repairs becomes a VoxgiWarning (and is kept in
-    `Scene.warnings`).
+    `limits` (scene/refs.py): which files the scene may make us read (its
+    own folder only, regular files only) and how much memory the load may
+    take. Raises SceneError naming the file and the problem; what the file
+    holds that the baker ignores or repairs becomes a VoxgiWarning (and is
+    kept in `Scene.warnings`).
     """
     path = resolve(path)
-    if not os.path.exists(path):
+    if not os.path.lexists(path):
         known = builtin_scenes()
         hint = f" (built-in scenes: {', '.join(known)})" if known and os.sep not in path else ""
         raise SceneError(f"file not found{hint}", path)
-    if os.path.isdir(path):
-        raise SceneError("is a folder, not a scene file", path)
+    try:
+        check_regular(path)
+    except SceneError as e:
+        raise SceneError(str(e).replace("the scene: ", ""), path) from None
     ext = os.path.splitext(path)[1].lower()
     try:
         if ext in (".gltf", ".glb"):
             from .gltf_read import read_gltf
-            parts = read_gltf(path)
+            parts = read_gltf(path, limits)
         elif ext == ".obj":
             from .obj import read_obj
-            parts = read_obj(path, not one_sided)
+            parts = read_obj(path, not one_sided, limits)
         elif ext == ".ply":
-            parts = _read_ply(path, not one_sided)
+            parts = _read_ply(path, not one_sided, limits)
         else:
             raise SceneError(f"unsupported format {ext or '(no extension)'!r}; use {', '.join(FORMATS)}", path)
     except SceneError as e:
         if e.path is None:
             e.path = path
         raise
-    except Exception as e:  # a parser's own exception: say which file, in one line
-        raise SceneError(f"cannot read ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})",
-                         path) from e
+    except (KeyboardInterrupt, MemoryError, VoxgiError):
+        raise
+    except Exception as e:  # a parser's own exception: say which file, in one line (never the bytes it read)
+        raise SceneError(f"cannot read ({type(e).__name__})", path) from e
     parts["lights"] = tuple(parts.get("lights", ())) + tuple(lights)
     parts.pop("uvs1", None)  # a bake file's lightmap UVs and material extensions: the bake reader's business
     parts.pop("material_extensions", None)
-    return _validate(path, sky=sky, **parts)
+    return scene_from_parts(path, sky=sky, **parts)
 
 
-def _validate(path, vertices, triangles, material_ids, materials, normals=None, uvs=None, cameras=(),
-              lights=(), sky=None, notes=()) -> Scene:
+def scene_from_parts(path, vertices, triangles, material_ids, materials, normals=None, uvs=None, cameras=(),
+                     lights=(), sky=None, notes=(), clean=True) -> Scene:
+    """A validated Scene from a reader's arrays: finite vertices, indices
+    in range, sane materials; with `clean`, degenerate and duplicate
+    triangles dropped and coplanar overlaps cut (a bake file's geometry
+    is read as written: clean=False)."""
     vertices = np.asarray(vertices, np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, np.int64).reshape(-1, 3)
     material_ids = np.asarray(material_ids, np.int64).reshape(-1)
@@ -103,6 +114,18 @@ def _validate(path, vertices, triangles, material_ids, materials, normals=None, 
                          f"{triangles.min()}..{triangles.max()})", path)
     if np.abs(vertices).max() > 1e18:
         raise SceneError("vertex coordinates beyond 1e18", path)
+    for what, arr, width in (("normals", normals, 3), ("texture coordinates", uvs, 2)):
+        if arr is not None and (np.shape(arr) != (len(vertices), width) or not np.isfinite(arr).all()):
+            raise SceneError(f"{what}: not one finite {width}-vector per vertex", path)
+    if len(material_ids) != len(triangles) or material_ids.min() < 0 or material_ids.max() >= len(materials):
+        raise SceneError("material indices out of range", path)
+    materials = _checked_materials(path, materials, notes)
+    if not clean:
+        return Scene(vertices=vertices.astype(np.float32), triangles=triangles.astype(np.int32),
+                     material_ids=material_ids.astype(np.int32), materials=tuple(materials),
+                     normals=None if normals is None else np.asarray(normals, np.float32),
+                     uvs=None if uvs is None else np.asarray(uvs, np.float32),
+                     cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path)
     c = vertices[triangles]
     area2 = np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
     scale = float(np.abs(vertices).max()) or 1.0
@@ -143,6 +166,23 @@ def _validate(path, vertices, triangles, material_ids, materials, normals=None, 
     return replace(scene, warnings=tuple(notes))
 
 
+def _checked_materials(path, materials, notes) -> list:
+    """Materials with finite, non-negative colours; albedo above 1 (which
+    would create energy at every bounce) is clamped to 1 with a note."""
+    out, clamped = [], []
+    for i, m in enumerate(materials):
+        for what, v in (("albedo", m.albedo), ("emission", m.emission)):
+            if len(v) != 3 or not np.isfinite(v).all() or (v < 0).any() or (v > 1e30).any():
+                raise SceneError(f"material {i} ({m.name!r}): {what} must be 3 finite numbers in 0..1e30", path)
+        if (m.albedo > 1).any():
+            clamped.append(m.name)
+            m = replace(m, albedo=np.minimum(m.albedo, 1).astype(np.float32))
+        out.append(m)
+    if clamped:
+        notes.append(f"{path}: albedo above 1 clamped to 1 in {', '.join(repr(n) for n in clamped)}")
+    return out
+
+
 def duplicate_triangles(corners) -> np.ndarray:
     """(nt,) bool: triangles whose corners (nt, 3, 3) repeat an earlier
     triangle's with the same winding (any first corner). A file that gives
@@ -165,11 +205,58 @@ def duplicate_triangles(corners) -> np.ndarray:
     return repeat
 
 
-def _read_ply(path, double_sided):
+def _read_ply(path, double_sided, limits: LoadLimits):
+    """A PLY file through trimesh, its header's element counts checked
+    against the bytes present first. It is handed over as bytes, so no
+    texture named in its comments is opened."""
+    import io
+
     import trimesh
-    mesh = trimesh.load(path, force="mesh", process=False)
+    data = read_file(path, None, path, "the scene")
+    _check_ply_header(data, path, limits)
+    mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh", process=False)
     if not hasattr(mesh, "faces") or len(mesh.faces) == 0:
         raise SceneError("no triangles (a point cloud?)", path)
     return dict(vertices=np.asarray(mesh.vertices), triangles=np.asarray(mesh.faces),
                 material_ids=np.zeros(len(mesh.faces)),
                 materials=[make_material("default", double_sided=double_sided)])
+
+
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+              "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def _check_ply_header(data: bytes, path, limits: LoadLimits):
+    """SceneError if the header's element counts need more bytes than the
+    file holds (a binary element needs its fixed-size properties, a list at
+    least its count; an ASCII one at least two characters a property)."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise SceneError("not a PLY file (no 'ply' magic or no end_header)", path)
+    header = data[:end].decode("ascii", errors="replace").split("\n")
+    fmt = next((line.split()[1] for line in header if line.startswith("format ") and len(line.split()) > 1), "")
+    need, count, elements = 0, 0, 0
+    for line in header:
+        w = line.split()
+        if not w:
+            continue
+        if w[0] == "element" and len(w) >= 3:
+            try:
+                count = int(w[2])
+            except ValueError:
+                raise SceneError(f"PLY header: element count {w[2]!r} is not a number", path) from None
+            if count < 0:
+                raise SceneError(f"PLY header: negative element count {count}", path)
+            elements += count
+        elif w[0] == "property" and len(w) >= 3:
+            if fmt == "ascii":
+                need += 2 * count
+            elif w[1] == "list" and len(w) >= 5:
+                need += _PLY_SIZES.get(w[2], 1) * count
+            else:
+                need += _PLY_SIZES.get(w[1], 1) * count
+    present = len(data) - end
+    if need > present:
+        raise SceneError(f"PLY header promises {elements} elements needing at least {need} bytes; the file holds "
+                         f"{present} after its header (truncated?)", path)
+    limits.check_bytes(float(elements) * 200, f"{elements} PLY elements", path)

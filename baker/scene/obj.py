@@ -26,7 +26,8 @@ import numpy as np
 
 from ..errors import SceneError
 from .model import make_material
-from .textures import read_albedo_texture
+from .refs import LoadLimits, read_file, resolve_reference
+from .textures import decode_texture
 
 DEFAULT = "default"  # the material of faces before any usemtl, and of names no MTL defines
 
@@ -35,24 +36,24 @@ def parse_mtl(path) -> dict:
     """name -> {key: values} of an MTL file (keys as written: Kd, Ke, Ks,
     map_Kd, ...; numbers as float lists, map_ values as a file name)."""
     out, cur = {}, None
-    with open(path, encoding="utf-8", errors="replace") as f:
-        for line in f:
-            line = line.split("#", 1)[0].strip()
-            if not line:
-                continue
-            key, rest = (line.split(None, 1) + [""])[:2]
-            rest = rest.strip()
-            if key == "newmtl":
-                cur = out.setdefault(rest, {})
-            elif cur is None:
-                continue
-            elif key.startswith("map_") or key in ("bump", "disp", "decal", "refl"):
-                cur[key] = _map_file(rest)
-            else:
-                try:
-                    cur[key] = [float(v) for v in rest.split()]
-                except ValueError:
-                    cur[key] = rest
+    text = read_file(path, None, path, "material library").decode("utf-8", errors="replace")
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        key, rest = (line.split(None, 1) + [""])[:2]
+        rest = rest.strip()
+        if key == "newmtl":
+            cur = out.setdefault(rest, {})
+        elif cur is None:
+            continue
+        elif key.startswith("map_") or key in ("bump", "disp", "decal", "refl"):
+            cur[key] = _map_file(rest)
+        else:
+            try:
+                cur[key] = [float(v) for v in rest.split()]
+            except ValueError:
+                cur[key] = rest
     return out
 
 
@@ -104,17 +105,17 @@ def ignored_terms(mtl: dict) -> dict:
     return out
 
 
-def _find_libs(rest: str, folder: str):
+def _find_libs(rest: str, path, limits: LoadLimits):
     """Files an `mtllib` statement names: the whole remainder if such a file
-    exists (a name with spaces), else each word. Returns (found, missing)."""
-    whole = os.path.join(folder, rest)
-    if rest and os.path.isfile(whole):
-        return [whole], []
+    exists (a name with spaces), else each word. Returns (found, missing);
+    a name the reference rules refuse (refs.py) raises SceneError."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if rest and os.path.isfile(os.path.join(folder, rest)):
+        return [resolve_reference(rest, path, "material library", limits)], []
     found, missing = [], []
     for name in rest.split():
-        p = os.path.join(folder, name)
-        if os.path.isfile(p):
-            found.append(p)
+        if os.path.lexists(os.path.join(folder, name)) or os.path.isabs(name):
+            found.append(resolve_reference(name, path, "material library", limits))
         else:
             missing.append(name)
     return found, missing
@@ -164,11 +165,10 @@ def _triangulate(poly, p):
     return out
 
 
-def read_obj(path, double_sided=True) -> dict:
+def read_obj(path, double_sided=True, limits: LoadLimits = LoadLimits()) -> dict:
     """The parts of a Scene from an OBJ file (and its MTL files), with a
     list of warnings. Raises SceneError naming the line of a bad statement
     (indices as the file counts them, from 1)."""
-    folder = os.path.dirname(path)
     pos, tex = [], []
     tri_v, tri_t, tri_m = [], [], []
     mat_index = {}
@@ -221,7 +221,7 @@ def read_obj(path, double_sided=True) -> dict:
             elif key == "usemtl":
                 current = rest or DEFAULT
             elif key == "mtllib":
-                found, missing = _find_libs(rest, folder)
+                found, missing = _find_libs(rest, path, limits)
                 for lib in found:
                     mtl.update(parse_mtl(lib))
                 for name in missing:
@@ -237,9 +237,13 @@ def read_obj(path, double_sided=True) -> dict:
         texture = None
         tex_name = d.get("map_Kd")
         if tex_name:
-            tex_path = os.path.join(folder, tex_name)
-            if os.path.isfile(tex_path):
-                texture = read_albedo_texture(tex_path)
+            folder = os.path.dirname(os.path.abspath(path))
+            if os.path.lexists(os.path.join(folder, tex_name)) or os.path.isabs(tex_name):
+                what = f"texture {tex_name!r} of material {name!r}"
+                target = resolve_reference(tex_name, path, f"texture of material {name!r}", limits)
+                texture, note = decode_texture(read_file(target, None, path, what), what, path, limits)
+                if note:
+                    notes.append(note)
             else:
                 notes.append(f"{path}: texture {tex_name!r} of material {name!r} not found: its Kd alone is used")
         kd = d.get("Kd", [0.8, 0.8, 0.8])

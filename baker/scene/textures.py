@@ -1,7 +1,13 @@
-"""Albedo textures: decoded by Pillow, sRGB to linear."""
+"""Albedo textures: decoded by Pillow, sRGB to linear, no larger than the
+load's limit (refs.LoadLimits.max_texture)."""
 from __future__ import annotations
 
+import io
+import warnings
+
 import numpy as np
+
+from ..errors import SceneError
 
 
 def srgb_to_linear(img: np.ndarray) -> np.ndarray:
@@ -14,7 +20,26 @@ def image_to_albedo(img) -> np.ndarray:
     return srgb_to_linear(arr)
 
 
-def read_albedo_texture(path) -> np.ndarray:
+def decode_texture(data: bytes, what: str, path, limits):
+    """(h, w, 3) float32 linear albedo from encoded image bytes, and a note
+    (or None) when it was scaled down to `limits.max_texture` on its longer
+    side. The size in the image's header is checked against the memory
+    budget before a pixel is decoded."""
     from PIL import Image
-    with Image.open(path) as img:
-        return image_to_albedo(img)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limits below decide
+        try:
+            img = Image.open(io.BytesIO(data))
+            w, h = img.size
+            # decoded as 8-bit RGBA at most, then float32 RGB at the limited size
+            limits.check_bytes(4.0 * w * h, f"{what} ({w}x{h} pixels)", path)
+            note = None
+            if max(w, h) > limits.max_texture:
+                img.thumbnail((limits.max_texture, limits.max_texture), Image.Resampling.BOX)
+                note = (f"{path}: {what} is {w}x{h} pixels; scaled down to {img.size[0]}x{img.size[1]} "
+                        f"(--max-texture {limits.max_texture})")
+            return image_to_albedo(img), note
+        except Image.DecompressionBombError:
+            raise SceneError(f"{what}: an image of too many pixels to decode", path) from None
+        except (OSError, ValueError, SyntaxError, Image.UnidentifiedImageError) as e:
+            raise SceneError(f"{what}: not a readable image ({type(e).__name__})", path) from None

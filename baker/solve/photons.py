@@ -296,7 +296,8 @@ def _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, 
     tables = [uniform[0]]
     for r, li in enumerate(sun, start=1):
         sel = landed & (which == r - 1)
-        w = np.bincount(cell[sel], weights=pw[sel].sum(axis=1), minlength=g * g)
+        # float64 even when no pilot photon landed (bincount of nothing is integer)
+        w = np.bincount(cell[sel], weights=pw[sel].sum(axis=1), minlength=g * g).astype(np.float64)
         w *= disc
         rows[li] = r
         if w.sum() <= 0:
