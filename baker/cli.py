@@ -502,7 +502,7 @@ def build_parser():
     p.add_argument("--preview-vpls", type=integer(0, 1 << 24), default=65_536,
                    help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
                         "0: none)")
-    p.add_argument("--texel-samples", type=integer(1, 16), metavar="N",
+    p.add_argument("--texel-samples", type=integer(1, 8), metavar="N",
                    help="anti-aliasing of lightcuts texels: where the light changes sharply across a texel (a "
                         "shadow's edge, a contact) it takes the mean of an N x N grid of points (default: 2 for "
                         "default, 4 for high; 1: one point per texel)")

@@ -250,10 +250,10 @@ def test_cli_bake_writes_a_readable_file_and_a_summary(tmp_path):
 
 def test_cli_bake_refuses_bad_settings(tmp_path):
     cases = [(["-o", tmp_path / "x.png"], "unsupported output format"),
-             (["-o", tmp_path / "x.glb", "--texel-density", "-2"], "texel density must be a positive"),
+             (["-o", tmp_path / "x.glb", "--texel-density", "-2"], "argument --texel-density: must be a finite number above 0"),
              (["-o", tmp_path / "x.glb", "--uv", "atlas"], "invalid choice"),
-             (["-o", tmp_path / "x.glb", "--texel-samples", "0"], "texel samples must be a grid side from 1"),
-             (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "texel samples must be a grid side from 1")]
+             (["-o", tmp_path / "x.glb", "--texel-samples", "0"], "argument --texel-samples: must lie in 1..8"),
+             (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "argument --texel-samples: must lie in 1..8")]
     for args, message in cases:
         r = subprocess.run([sys.executable, "-m", "baker", "bake", "cornell_box", *map(str, args)],
                            capture_output=True, text=True, timeout=300)

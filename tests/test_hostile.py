@@ -353,6 +353,8 @@ def test_viewer_flags_are_one_line(tmp_path):
     (lambda d: d["nodes"][0].update(children=[0]), "deeper than 256"),
     (lambda d: d["asset"].update(version="3.0"), "glTF version '3.0'"),
     (lambda d: d.update(extensionsRequired=["EXT_meshopt_compression"]), "EXT_meshopt_compression"),
+    (lambda d: d["bufferViews"][0].update(extensions={"EXT_meshopt_compression": {"buffer": 0}}) or d.update(
+        extensionsUsed=["EXT_meshopt_compression"]), "compressed with EXT_meshopt_compression"),
     (lambda d: d["materials"][0].update(emissiveFactor=[float("nan")] * 3), "emissiveFactor"),
     (lambda d: d["accessors"][0].update(type="MAT4"), "type 'MAT4'"),
 ])

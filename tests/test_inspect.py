@@ -100,12 +100,40 @@ def test_cut_pieces_interpolate_the_corners_attributes():
     t = np.array([[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]])
     uv = v[:, [0, 2]] * 0.3 + 0.1                                  # a linear map of the plane
     nrm = np.tile([0.0, 1.0, 0.0], (8, 1))
-    v2, t2, m2, n2, uv2, (cut, area) = cut_overlaps(v, t, np.array([0, 0, 1, 1]), np.zeros(2, bool),
-                                                   np.zeros(2, bool), nrm, uv)
-    assert cut == 2 and area == pytest.approx(1.0)
+    v2, t2, m2, n2, uv2, (cut, area, whole) = cut_overlaps(v, t, np.array([0, 0, 1, 1]), np.zeros(2, bool),
+                                                           np.zeros(2, bool), nrm, uv)
+    assert cut == 2 and area == pytest.approx(1.0) and whole == 0
     assert np.abs(v2[:, 1]).max() == 0
     assert np.allclose(uv2, v2[:, [0, 2]] * 0.3 + 0.1) and np.allclose(n2, [0, 1, 0])
     assert (np.cross(v2[t2][:, 1] - v2[t2][:, 0], v2[t2][:, 2] - v2[t2][:, 0])[:, 1] > 0).all()
+
+
+def test_pieces_grow_only_where_coverers_overlap():
+    """A floor triangle under many small coverers (pot bases on a floor):
+    each coverer splits only the pieces it overlaps, so the pieces grow
+    with the coverers, not three-fold per coverer; past MAX_PIECES the
+    triangle is kept whole and counted."""
+    from baker.scene import overlaps
+    n = 40
+    floor = np.array([[0, 0, 0], [0, 0, 100], [100, 0, 0]], float)  # one-sided, facing +y
+    xs = 1 + 2.2 * np.arange(n)
+    small = [[[x, 0, 1], [x, 0, 2], [x + 1, 0, 1]] for x in xs]   # each a one-sided coverer inside the floor
+    v = np.concatenate([np.concatenate(small), floor]).reshape(-1, 3)
+    t = np.arange(len(v)).reshape(-1, 3)
+    mids = np.zeros(len(t), np.int64)
+    v2, t2, m2, _, _, (cut, area, whole) = overlaps.cut_overlaps(v, t, mids, np.zeros(1, bool), np.zeros(1, bool))
+    assert cut == 1 and whole == 0 and area == pytest.approx(n * 0.5)
+    assert len(t2) - n < 6 * n  # the floor's pieces: a few per coverer (before: 3^n)
+    c = v2[t2]
+    total = 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1).sum()
+    assert total == pytest.approx(5000.0)  # the floor's area, counted once
+    old = overlaps.MAX_PIECES
+    try:
+        overlaps.MAX_PIECES = 8
+        *_, (cut, area, whole) = overlaps.cut_overlaps(v, t, mids, np.zeros(1, bool), np.zeros(1, bool))
+    finally:
+        overlaps.MAX_PIECES = old
+    assert cut == 0 and whole == 1
 
 
 def test_lamp_on_the_ceilings_plane_stays_whole(make_scene):

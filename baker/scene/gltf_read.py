@@ -289,6 +289,10 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
         raise SceneError(f"the file requires the glTF extension{'s' * (len(unsupported) > 1)} "
                          f"{', '.join(unsupported)}, which voxgi does not read (decompress or re-export the "
                          f"file without it)", path)
+    if any("EXT_meshopt_compression" in (v.extensions or {}) for v in doc.bufferViews or []):
+        # its uncompressed fallback buffer holds no data: reading it would look like a truncated file
+        raise SceneError("the file's buffers are compressed with EXT_meshopt_compression, which voxgi does not "
+                         "read (decompress it first, e.g. `gltfpack -noq` or gltf-transform)", path)
     quantized = "KHR_mesh_quantization" in (doc.extensionsUsed or [])
     vector_types = tuple(_COMPONENT) if quantized else (5126,)
     file_size = os.path.getsize(path)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import SceneError, VoxgiError, VoxgiWarning
 from .model import Scene, Sky, make_material
-from .overlaps import cut_overlaps
+from .overlaps import MAX_PIECES, cut_overlaps
 from .refs import LoadLimits, check_regular, read_file
 
 FORMATS = (".glb", ".gltf", ".obj", ".ply")
@@ -145,10 +145,14 @@ def scene_from_parts(path, vertices, triangles, material_ids, materials, normals
         triangles, material_ids = triangles[~duplicate], material_ids[~duplicate]
     emits = np.array([max(m.emission) > 0 for m in materials], bool)
     two_sided = np.array([m.double_sided for m in materials], bool)
-    vertices, triangles, material_ids, normals, uvs, (n_cut, cut_area) = cut_overlaps(
+    vertices, triangles, material_ids, normals, uvs, (n_cut, cut_area, n_whole) = cut_overlaps(
         vertices, triangles, material_ids, emits, two_sided,
         None if normals is None else np.asarray(normals, np.float64),
         None if uvs is None else np.asarray(uvs, np.float64))
+    if n_whole:
+        notes.append(f"{path}: left {n_whole} coplanar triangle{'s' * (n_whole != 1)} whole although others "
+                     f"overlap {'them' if n_whole != 1 else 'it'}: cutting would need more than "
+                     f"{MAX_PIECES} pieces each (the overlap is lit twice there)")
     if n_cut:
         notes.append(f"{path}: cut the overlapping part out of {n_cut} coplanar triangle{'s' * (n_cut != 1)} "
                      f"({cut_area:.4g} scene units^2, covered by another facing the same way: one surface counts "

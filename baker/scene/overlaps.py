@@ -32,6 +32,7 @@ from numba import njit
 
 OVERLAP_FRAC = 1e-6   # overlaps below this fraction of a triangle's area are rounding
 SLIVER_FRAC = 1e-7    # remaining pieces below this fraction of the triangle's area are dropped
+MAX_PIECES = 256      # a triangle whose remainder would need more convex pieces is left whole (with a warning)
 
 
 @njit(cache=True)
@@ -211,7 +212,8 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
     (nv, 3), uvs (nv, 2) or None. Returns (vertices, triangles,
     material_ids, normals, uvs, cut) with the new corners appended and
     each cut triangle replaced by its remaining pieces (at the end), and
-    cut = (number of triangles cut, overlapping area removed)."""
+    cut = (number of triangles cut, overlapping area removed, number of
+    triangles left whole because their pieces would exceed MAX_PIECES)."""
     corners = vertices[triangles].astype(np.float64)
     em = np.asarray(emits, bool)[material_ids]
     ds = np.asarray(two_sided, bool)[material_ids]
@@ -221,13 +223,13 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
     pos[rank] = np.arange(nt)
     uv, order, starts, flipped, mirrored = plane_groups(corners, pos, canonical=True)
     if len(order) == 0:
-        return vertices, triangles, material_ids, normals, uvs, (0, 0.0)
+        return vertices, triangles, material_ids, normals, uvs, (0, 0.0, 0)
     a, b, _ = overlap_pairs(uv, order, starts, OVERLAP_FRAC)
     # b loses what a covers where a has every face b has
     covers = ds[a] | (~ds[b] & (flipped[a] == flipped[b]))
     a, b = a[covers], b[covers]
     if len(b) == 0:
-        return vertices, triangles, material_ids, normals, uvs, (0, 0.0)
+        return vertices, triangles, material_ids, normals, uvs, (0, 0.0, 0)
     sort = np.argsort(b, kind="stable")
     a, b = a[sort], b[sort]
     cut_tris, first = np.unique(b, return_index=True)
@@ -236,12 +238,20 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
     base = len(vertices)  # index of the next new corner
     removed = 0.0
     drop = np.zeros(nt, bool)
+    too_many = 0
     for t, lo, hi in zip(cut_tris, first, last):
         tri_uv = uv[t]
+        area = _area2(tri_uv)
         polys = [tri_uv.copy()]
         for s in a[lo:hi]:
-            polys = [q for p in polys for q in _subtract(p, uv[s])]
-        area = _area2(tri_uv)
+            # only the pieces s overlaps are split: the others stay whole (a floor under many pot bases)
+            polys = [q for p in polys for q in (_subtract(p, uv[s]) if _overlap(p, uv[s], SLIVER_FRAC * area)
+                                                 else (p,))]
+            if len(polys) > MAX_PIECES:
+                break
+        if len(polys) > MAX_PIECES:  # a pathological case: keep the triangle as it is
+            too_many += 1
+            continue
         polys = [p for p in polys if _area2(p) > SLIVER_FRAC * area]
         kept = sum(_area2(p) for p in polys)
         removed += (area - kept) / max(area, 1e-300) * _area3(corners[t])
@@ -276,7 +286,21 @@ def cut_overlaps(vertices, triangles, material_ids, emits, two_sided, normals=No
         uvs = np.concatenate([uvs] + new_uv)
     triangles = np.concatenate([triangles[keep]] + new_t) if new_t else triangles[keep]
     material_ids = np.concatenate([material_ids[keep]] + new_m) if new_m else material_ids[keep]
-    return vertices, triangles, material_ids, normals, uvs, (len(cut_tris), float(removed))
+    return vertices, triangles, material_ids, normals, uvs, (int(drop.sum()), float(removed), too_many)
+
+
+def _overlap(poly, tri, min_area) -> bool:
+    """Does the counter-clockwise triangle tri (3, 2) cover more than
+    min_area of the convex polygon poly (k, 2)?"""
+    if (poly.max(axis=0) <= tri.min(axis=0)).any() or (tri.max(axis=0) <= poly.min(axis=0)).any():
+        return False
+    px, py, m = poly[:, 0].copy(), poly[:, 1].copy(), len(poly)
+    for k in range(3):
+        a, b = tri[k], tri[(k + 1) % 3]
+        px, py, m = clip_half(px, py, m, a[0], a[1], b[0], b[1], True)
+        if m < 3:
+            return False
+    return abs(polygon_area(px, py, m)) > min_area
 
 
 def _area2(p):
