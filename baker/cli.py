@@ -400,21 +400,27 @@ def _solver_args(p):
     g.add_argument("--surface-cells", type=integer(1, 10 ** 8),
                    help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
                         "the surface area (preset: 12500/25000/100000)")
-    g.add_argument("--resolution", type=integer(1, 1 << 16), help="voxel cells along the scene's longest axis (instead)")
-    g.add_argument("--cell-size", type=number(0, 1e18, lo_open=True), help="voxel cell size in scene units (instead of either)")
+    g.add_argument("--resolution", type=integer(1, 1 << 16),
+                   help="voxel cells along the scene's longest axis (instead)")
+    g.add_argument("--cell-size", type=number(0, 1e18, lo_open=True),
+                   help="voxel cell size in scene units (instead of either)")
     g.add_argument("--radius", type=integer(1, 64), help="direction radius r of the first propagated bounce")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce")
-    g.add_argument("--photons", type=integer(1, 10 ** 10), help="photons for the first bounce (instead of --photons-per-voxel)")
-    g.add_argument("--photons-per-voxel", type=number(0, 1e6, lo_open=True), help="photons per voxel for the first bounce (preset: 32/64/128)")
+    g.add_argument("--photons", type=integer(1, 10 ** 10),
+                   help="photons for the first bounce (instead of --photons-per-voxel)")
+    g.add_argument("--photons-per-voxel", type=number(0, 1e6, lo_open=True),
+                   help="photons per voxel for the first bounce (preset: 32/64/128)")
     g.add_argument("--photon-smoothing", type=number(0, 100), metavar="K",
                    help="pool a voxel's photons with same-surface neighbours that agree within K standard "
                         "deviations of the photon noise (preset: 2/0/0; 0: off)")
     g.add_argument("--tolerance", type=number(0, 1), help="stop when new light < tolerance x first bounce")
     g.add_argument("--max-bounces", type=integer(1, 10000), help="bounce cap")
     g = p.add_argument_group("lightcuts (render --method lightcuts; bake --preset default/high)")
-    g.add_argument("--epsilon", type=number(0, 1, lo_open=True), help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01; "
+    g.add_argument("--epsilon", type=number(0, 1, lo_open=True),
+                   help="lightcuts' relative error bound per cut (preset: 0.05/0.02/0.01; "
                                                  "a bake's texels at default: 0.01)")
-    g.add_argument("--direct-vpls", type=integer(1, 1 << 24), help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
+    g.add_argument("--direct-vpls", type=integer(1, 1 << 24),
+                   help="VPLs sampled on the area emitters (preset: 4096/32768/131072)")
 
 
 def build_parser():
@@ -459,7 +465,8 @@ def build_parser():
                    default="pathtrace", help="default: pathtrace")
     p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16,
                    help="instant-radiosity: VPLs added per frame (default 16)")
-    p.add_argument("--frames", type=integer(1, 1 << 20), default=256, help="instant-radiosity: frames at most (default 256)")
+    p.add_argument("--frames", type=integer(1, 1 << 20), default=256,
+                   help="instant-radiosity: frames at most (default 256)")
     p.add_argument("--ir-tolerance", type=number(0, 1), default=0.0,
                    help="instant-radiosity: stop when a frame changes the image by less than this (relative)")
     p.add_argument("--width", type=IMAGE_SIDE, default=512, help="image width in pixels (default 512)")
@@ -528,7 +535,8 @@ def build_parser():
     p.add_argument("--preset", choices=("preview", "default", "high"), default="default")
     p.add_argument("--resolution", type=integer(1, 1 << 16), help="voxel cells along the scene's longest axis")
     p.add_argument("--cell-size", type=number(0, 1e18, lo_open=True), help="voxel cell size in scene units")
-    p.add_argument("--radius", type=integer(1, 64), default=4, help="direction radius r to sample families from (default 4)")
+    p.add_argument("--radius", type=integer(1, 64), default=4,
+                   help="direction radius r to sample families from (default 4)")
     p.add_argument("--families", type=integer(1, 10000), default=16, help="families sampled (default 16)")
     p.add_argument("--samples", type=integer(1, 10 ** 6), default=2000, help="voxels per family (default 2000)")
     p.add_argument("--seed", type=SEED, default=0)

@@ -14,7 +14,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 
 from common import ROOT, emit
 
@@ -33,7 +32,6 @@ with warnings.catch_warnings(record=True) as caught:
 notes = " ".join(str(w.message) for w in caught)
 cut = re.search(r"cut the overlapping part out of (\d+)", notes)
 whole = re.search(r"left (\d+) coplanar", notes)
-import pygltflib
 print(json.dumps({"load_s": t_load, "import_s": t_import, "triangles": int(len(scene.triangles)),
                   "cut": int(cut.group(1)) if cut else 0, "whole": int(whole.group(1)) if whole else 0}))
 """
@@ -76,7 +74,6 @@ def main():
         n_file = int(run_child(FILE_TRIANGLES, path)[0])
         loads, peaks, info = [], [], None
         for _ in range(args.runs):
-            t = time.perf_counter()
             out, peak = run_child(CHILD, path)
             info = json.loads(out)
             loads.append(info["load_s"])

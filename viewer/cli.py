@@ -122,8 +122,10 @@ def build_parser():
     p.add_argument("--mode", choices=MODES + ("preview",), default="lightmap",
                    help="lightmap (default), a debug view, or preview (progressive instant radiosity over the "
                         "bake's VPL list, at the pixels' centres)")
-    p.add_argument("--frames", type=integer(1, 1 << 20), default=64, help="preview mode: frames to accumulate (default 64)")
-    p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16, help="preview mode: VPLs a frame (default 16)")
+    p.add_argument("--frames", type=integer(1, 1 << 20), default=64,
+                   help="preview mode: frames to accumulate (default 64)")
+    p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16,
+                   help="preview mode: VPLs a frame (default 16)")
     p.add_argument("--samples", type=integer(1, 16), default=4, help="samples per pixel along each axis (default 4)")
     p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")

@@ -140,7 +140,9 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     stats.count(**counts)
     meta = {"preset": config.preset, "uv": config.uv, "texel_density": config.texel_density,
             "texel_values": "voxel solution (reconstructed at each texel)" if config.lightcuts is None else
-            "lightcuts over the VPLs", "solver": {k: v for k, v in asdict(config.solver).items() if k != "threads"},  # machine's, not bake's
+            "lightcuts over the VPLs",
+            # the thread count is the machine's, not the bake's: the same bake is the same bytes on any
+            "solver": {k: v for k, v in asdict(config.solver).items() if k != "threads"},
             "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
             "texel_samples": config.texel_samples if config.lightcuts else 1,
             "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,

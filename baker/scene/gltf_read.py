@@ -9,7 +9,6 @@ only the accessor bytes are decoded by hand.
 """
 from __future__ import annotations
 
-import io
 import os
 
 import numpy as np
