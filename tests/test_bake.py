@@ -15,6 +15,8 @@ from baker.render import render
 from baker.render.compare import compare
 from scenes.generate import closed_box, thin_wall, two_rooms
 
+from .conftest import skip_without_shared
+
 SMALL = dict(resolution=24, photons=100_000)
 
 
@@ -690,8 +692,7 @@ def test_every_bake_opens_in_our_reader_and_viewer(tmp_path, name):
     from baker.scene.load import resolve
     if name == "gazebo":
         path = os.path.join(BIG, "gazebo.glb")
-        if not os.path.exists(path):
-            pytest.skip("the public gazebo scene is read from ../shared/realscenes/big, absent here")
+        skip_without_shared(path, "the public gazebo scene")
     elif name in REPRODUCTION_CASES:
         path = str(tmp_path / f"{name}.glb")
         reproduction_case(name).save(path)

@@ -10,6 +10,8 @@ from baker.errors import SceneError
 from baker.scene import load_scene
 from scenes.generate import GltfBuilder, box, cornell_box, quad
 
+from .conftest import skip_without_shared
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -326,8 +328,7 @@ def closed_scene(tmp_path, kind, two_sided):
     object), a room (inward normals), or the Stanford bunny scan."""
     from scenes.generate import icosphere
     if kind == "bunny":
-        if not os.path.exists(BUNNY):
-            pytest.skip("the public Stanford bunny is read from ../shared/realscenes, absent here")
+        skip_without_shared(BUNNY, "the public Stanford bunny")
         return load_scene(BUNNY, one_sided=not two_sided)
     b = GltfBuilder()
     part = {"sphere": lambda: icosphere(2, 0.5, (1, 2, 3)), "box": lambda: box((0, 0, 0), (2, 1, 1.5)),
@@ -364,8 +365,7 @@ def test_the_bunny_under_a_sky_renders_lit():
     """The issue as a user met it: the scan without a camera, under a sky."""
     from baker.render import render
     from baker.scene import Sky
-    if not os.path.exists(BUNNY):
-        pytest.skip("the public Stanford bunny is read from ../shared/realscenes, absent here")
+    skip_without_shared(BUNNY, "the public Stanford bunny")
     scene = load_scene(BUNNY, sky=Sky(np.ones(3)))
     img = render(scene, width=32, height=32, spp=8)
     assert img.mean() > 0.1, img.mean()
