@@ -20,15 +20,16 @@ import os as _os  # noqa: E402
 
 # numba's OpenMP threads spin while they wait for work by default; beside another busy process a spinning
 # thread holds the core that the late thread needs (the propagation meets a barrier per batch of
-# families): 2.6-3.4x slower with one or two busy processes on two cores, against 1.8x when the threads
-# sleep, and the same speed on a quiet machine (bench/threads.py). The user's own setting wins.
+# families), so threads that sleep lose less beside other work and nothing on a quiet machine
+# (bench/threads.py). The user's own setting wins.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from .kernel_cache import sync as _sync_kernel_cache  # noqa: E402
 
 _sync_kernel_cache()  # cached kernels compiled from other sources are dropped (kernel_cache.py)
 
-from .config import PRESETS, SolverConfig, solver_config  # noqa: E402
+from .config import SolverConfig  # noqa: E402
+from .presets import PRESETS, Preset, bake_config, lightcuts_config, solver_config  # noqa: E402
 from .errors import BakeFileError, BudgetError, ConfigError, GLError, SceneError, VoxgiError, VoxgiWarning  # noqa: E402
 from .render import read_exr, render, write_image  # noqa: E402
 from .scene import Scene, builtin_scenes, load_scene  # noqa: E402
@@ -36,6 +37,6 @@ from .solve import Solution, solve  # noqa: E402
 from .solve.audit import audit  # noqa: E402
 from .voxels import Voxels, voxelize  # noqa: E402
 
-__all__ = ["BakeFileError", "BudgetError", "ConfigError", "GLError", "PRESETS", "Scene", "SceneError", "Solution",
-           "SolverConfig", "Voxels", "VoxgiError", "VoxgiWarning", "__version__", "audit", "builtin_scenes",
+__all__ = ["BakeFileError", "BudgetError", "ConfigError", "GLError", "PRESETS", "Preset", "Scene", "SceneError", "Solution",
+           "SolverConfig", "Voxels", "VoxgiError", "VoxgiWarning", "__version__", "audit", "bake_config", "builtin_scenes", "lightcuts_config",
            "load_scene", "read_exr", "render", "solve", "solver_config", "voxelize", "write_image"]

@@ -91,3 +91,220 @@ THREADS = integer(0, 4096)
 EXPOSURE = number(-64, 64)
 IMAGE_SIDE = integer(1, 16384)
 SEED = integer(0, SEED_MAX)
+
+
+# ---- voxbake's parser: the flags, their ranges and their help, generated from the presets and the methods ----
+
+EPILOG = """examples:
+  voxbake scenes
+  voxbake info cornell_box
+  voxbake render cornell_box --method pathtrace --spp 256 -o cornell.exr
+  voxbake render cornell_box --method voxels --preset preview -o voxels.png --stats s.json
+  voxbake bake cornell_box -o cornell.glb --preset preview
+  voxbake render bunny.ply --sky 1,1,1 --sun 30,45,3 --look-from 0,0.2,0.5 --look-at 0,0.1,0 -o bunny.png
+
+Scenes: a .glb/.gltf/.obj/.ply file, or a built-in scene by name (`voxbake scenes`).
+The first run of a method compiles its kernels (10-30 s); later runs reuse them.
+"""
+
+
+def per_preset(value) -> str:
+    """A setting's value in each preset, as 'preview/default/high' shows it."""
+    from .presets import PRESETS
+    return "/".join(f"{value(p):g}" if isinstance(value(p), float) else f"{value(p)}" for p in PRESETS.values())
+
+
+def scene_args(p):
+    p.add_argument("scene", help="scene file (.glb, .gltf, .obj, .ply) or a built-in scene's name")
+    p.add_argument("--one-sided", action="store_true", help="treat OBJ/PLY triangles as one-sided (default: double)")
+    g = p.add_argument_group("input limits (every scene file is untrusted)")
+    g.add_argument("--allow-outside-refs", action="store_true",
+                   help="let the scene's buffers, images and material libraries name files outside the scene "
+                        "file's folder (by default they are refused; devices and FIFOs always are)")
+    g.add_argument("--max-texture", type=integer(16, 65536), default=4096, metavar="PIXELS",
+                   help="textures longer than this on a side are scaled down to it (default 4096)")
+    g.add_argument("--memory-budget", type=number(1, 1 << 30), metavar="MIB",
+                   help="refuse a load or a voxelization estimated above this many MiB (default 8192)")
+    g = p.add_argument_group("extra light (for a model with no lamp of its own)")
+    g.add_argument("--sky", type=colour, metavar="R,G,B",
+                   help="a uniform sky of this radiance (W m^-2 sr^-1) around the scene")
+    g.add_argument("--sky-mode", choices=("hemisphere", "sphere"), default="hemisphere",
+                   help="the sky lights from the upper hemisphere (+Y up, the default) or from every direction")
+    g.add_argument("--sun", type=sun, metavar="AZIMUTH,ELEVATION,IRRADIANCE",
+                   help="a sun: azimuth in degrees from +Z towards +X, elevation above the horizon (+Y up), "
+                        "irradiance in W/m^2 on a surface facing it")
+
+
+def camera_args(p):
+    g = p.add_argument_group("camera")
+    g.add_argument("--camera", default=None,
+                   help="camera name or index in the file (default: its first; none: an automatic camera that "
+                        "sees the scene, inside a closed room or through the open side of a box)")
+    g.add_argument("--look-from", type=triple, metavar="X,Y,Z", help="camera position (scene units)")
+    g.add_argument("--look-at", type=triple, metavar="X,Y,Z", help="point the camera looks at")
+    g.add_argument("--up", type=triple, metavar="X,Y,Z", help="camera up direction (default: the camera's, +Y)")
+    g.add_argument("--fov", type=number(0, 180, lo_open=True), metavar="DEG", help="vertical field of view in degrees")
+
+
+def run_args(p):
+    p.add_argument("--seed", type=SEED, default=0, help="random seed (same seed, same result, any thread count)")
+    p.add_argument("--threads", type=THREADS, default=0, help="worker threads (default 0: all cores)")
+
+
+def preset_arg(p):
+    from .presets import PRESETS
+    p.add_argument("--preset", choices=tuple(PRESETS), default="default",
+                   help="settings preset (default: default; their values are listed at the end)")
+
+
+def grid_args(g):
+    g.add_argument("--resolution", type=integer(1, 1 << 16),
+                   help="voxel cells along the scene's longest axis (instead of --surface-cells)")
+    g.add_argument("--cell-size", type=number(0, 1e18, lo_open=True),
+                   help="voxel cell size in scene units (instead of either)")
+
+
+def solver_args(p):
+    g = p.add_argument_group("voxel solver")
+    preset_arg(g)
+    g.add_argument("--surface-cells", type=integer(1, 10 ** 8),
+                   help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
+                        f"the surface area (preset: {per_preset(lambda p: p.solver.surface_cells)})")
+    grid_args(g)
+    g.add_argument("--radius", type=integer(1, 64), help="direction radius r of the first propagated bounce "
+                                                         f"(preset: {per_preset(lambda p: p.solver.radius)})")
+    g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce (default: halving)")
+    g.add_argument("--photons", type=integer(1, 10 ** 10),
+                   help="photons for the first bounce (instead of --photons-per-voxel)")
+    g.add_argument("--photons-per-voxel", type=number(0, 1e6, lo_open=True),
+                   help=f"photons per voxel for the first bounce (preset: "
+                        f"{per_preset(lambda p: p.solver.photons_per_voxel)})")
+    g.add_argument("--photon-smoothing", type=number(0, 100), metavar="K",
+                   help="pool a voxel's photons with same-surface neighbours that agree within K standard "
+                        f"deviations of the photon noise (preset: {per_preset(lambda p: p.solver.photon_smoothing)};"
+                        " 0: off)")
+    g.add_argument("--tolerance", type=number(0, 1), help="stop when new light < tolerance x first bounce "
+                                                          f"(preset: {per_preset(lambda p: p.solver.tolerance)})")
+    g.add_argument("--max-bounces", type=integer(1, 10000),
+                   help=f"bounce cap (preset: {per_preset(lambda p: p.solver.max_bounces)})")
+    g = p.add_argument_group("lightcuts (render --method lightcuts; bake's texels at default and high)")
+    g.add_argument("--epsilon", type=number(0, 1, lo_open=True),
+                   help=f"lightcuts' relative error bound per cut (frames' preset: "
+                        f"{per_preset(lambda p: p.lightcuts.epsilon)}; a bake's texels: "
+                        f"{per_preset(lambda p: p.texel_epsilon)})")
+    g.add_argument("--direct-vpls", type=integer(1, 1 << 24),
+                   help=f"VPLs sampled on the area emitters (preset: {per_preset(lambda p: p.lightcuts.direct_vpls)})")
+
+
+def _render_parser(sub):
+    import textwrap
+    from .render.frame import METHODS, SPP_CAP
+    methods = "\n".join(textwrap.fill(m.about, 78, initial_indent=f"  {m.name:<18} ", subsequent_indent=" " * 21)
+                        for m in METHODS.values())
+    p = sub.add_parser("render", help="render an image: reference path tracer, the voxel view, lightcuts, ...",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description=f"Render one camera of a scene.\n\n{methods}\n\nEXR output is linear radiance "
+                                   "(W m^-2 sr^-1); PNG is exposure-adjusted,\nACES-filmic tone-mapped sRGB.")
+    scene_args(p)
+    p.add_argument("-o", "--output", required=True, help="output image, .exr (linear) or .png (tone-mapped)")
+    p.add_argument("--method", choices=tuple(METHODS), default="pathtrace", help="default: pathtrace")
+    p.add_argument("--vpls-per-frame", type=integer(1, 1 << 20), default=16,
+                   help="instant-radiosity: VPLs added per frame (default 16)")
+    p.add_argument("--frames", type=integer(1, 1 << 20), default=256,
+                   help="instant-radiosity: frames at most (default 256)")
+    p.add_argument("--ir-tolerance", type=number(0, 1), default=0.0,
+                   help="instant-radiosity: stop when a frame changes the image by less than this (relative)")
+    p.add_argument("--width", type=IMAGE_SIDE, default=512, help="image width in pixels (default 512)")
+    p.add_argument("--height", type=IMAGE_SIDE, default=512, help="image height in pixels (default 512)")
+    p.add_argument("--spp", type=integer(1, SPP_CAP), default=None,
+                   help=f"pathtrace: samples per pixel (default 64; with --noise or --time-limit the most to take, "
+                        f"default {SPP_CAP})")
+    p.add_argument("--noise", type=number(0, 1, lo_open=True), default=None, metavar="TARGET",
+                   help="pathtrace: stop when the estimated relative RMSE of the image falls to TARGET (0.02: 2%%); "
+                        "the estimate comes from two halves of each pixel's samples, over the pixels that do "
+                        "not see a lamp directly")
+    p.add_argument("--time-limit", type=number(0, 1e7, lo_open=True), default=None, metavar="SECONDS",
+                   help="pathtrace: stop after about this many seconds (of path tracing)")
+    run_args(p)
+    p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
+    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    camera_args(p)
+    solver_args(p)
+    p.epilog = _presets_epilog()
+
+
+def _bake_parser(sub):
+    from .config import MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
+    p = sub.add_parser("bake", help="bake lightmaps into a glTF file a viewer can walk through",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Bake a scene's diffuse global illumination into lightmaps and write a glTF\n"
+                                   "binary (.glb): the geometry with lightmap UVs (TEXCOORD_1), the lightmap\n"
+                                   "pages as 8-bit PNGs (MOZ_lightmap: three.js, Hubs, Unity read them) and as\n"
+                                   "half-float EXR (for voxview), cameras, lights and the bake's settings.\n\n"
+                                   "Texels are one voxel cell wide unless --texel-density says otherwise. Texel\n"
+                                   "values come from the voxel solution reconstructed at each texel, or from\n"
+                                   "lightcuts over virtual point lights (direct light with shadow rays, bounced\n"
+                                   "light from the voxels); the presets below say which.")
+    scene_args(p)
+    p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
+    p.add_argument("--uv", choices=UV_MODES, default="per-triangle",
+                   help="lightmap UVs: one square map per triangle (default: deduplicated, quadtree-packed) or "
+                        "xatlas charts over connected triangles")
+    p.add_argument("--texel-density", type=number(0, 1e9, lo_open=True), metavar="D",
+                   help="texels per scene unit (default: one texel per voxel cell)")
+    p.add_argument("--preview-vpls", type=integer(0, 1 << 24), default=65_536,
+                   help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
+                        "0: none)")
+    p.add_argument("--texel-samples", type=integer(1, MAX_TEXEL_SAMPLES), metavar="N",
+                   help="anti-aliasing of lightcuts texels: where the light changes sharply across a texel (a "
+                        "shadow's edge, a contact) it takes the mean of an N x N grid of points (preset: "
+                        f"{per_preset(lambda p: p.texel_samples)}; 1: one point per texel)")
+    p.add_argument("--texel-interpolate", type=number(0, 1), metavar="T",
+                   help="adaptive shading of lightcuts texels: every other texel of every other row is shaded, "
+                        "and a texel between shaded ones that agree within T (a share of the brightest) takes "
+                        f"their mean; the others are shaded too (preset: {per_preset(lambda p: p.texel_interpolate)}"
+                        "; 0: every texel shaded)")
+    p.add_argument("--texels", choices=TEXEL_SOURCES,
+                   help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
+    run_args(p)
+    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    solver_args(p)
+    p.epilog = _presets_epilog()
+
+
+def _presets_epilog() -> str:
+    from .presets import help_table
+    return help_table()
+
+
+def build_parser():
+    ap = OneLineParser(
+        prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
+        description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer. "
+                    "It bakes lightmaps into glTF files (`voxbake bake`) and renders images.")
+    ap.add_argument("--version", action="version", version="voxgi 0.1.0")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    sub.add_parser("scenes", help="list the built-in scenes (usable by name wherever a scene file is asked)",
+                   description="List the scenes shipped with voxgi; give a name instead of a file path.")
+    p = sub.add_parser("info", help="print what a scene holds (triangles, materials, emitters, cameras, bounds)",
+                       description="Load a scene (.glb/.gltf/.obj/.ply or a built-in name) and print its "
+                                   "triangles, materials, emitters with total emitted power, punctual lights, "
+                                   "cameras and bounds, and what the baker ignores in it.")
+    scene_args(p)
+    _render_parser(sub)
+    _bake_parser(sub)
+    p = sub.add_parser("audit", help="compare the voxel lines' visibility with continuous rays",
+                       description="Visibility audit: for sampled (voxel, direction) pairs, compare the first voxel "
+                                   "the digital line meets with the first surface a continuous ray hits. 'sees "
+                                   "through' (the line passes an occluder) is the leak-like figure; 'misses' is an "
+                                   "upper bound (it also counts grazing within a cell).")
+    scene_args(p)
+    preset_arg(p)
+    grid_args(p)
+    p.add_argument("--radius", type=integer(1, 64), default=4,
+                   help="direction radius r to sample families from (default 4)")
+    p.add_argument("--families", type=integer(1, 10000), default=16, help="families sampled (default 16)")
+    p.add_argument("--samples", type=integer(1, 10 ** 6), default=2000, help="voxels per family (default 2000)")
+    run_args(p)
+    return ap

@@ -1,11 +1,11 @@
-"""Configuration as frozen dataclasses, the presets preview/default/high,
-and the worker-thread setting."""
+"""Configuration as frozen dataclasses (the solver, lightcuts, the bake)
+and the worker-thread setting; the presets that fill them are in
+presets.py."""
 from __future__ import annotations
 
-import difflib
 import math
 from contextlib import contextmanager
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field
 
 from .errors import ConfigError
 
@@ -76,13 +76,6 @@ class SolverConfig:
         if self.memory_budget_mb <= 0:
             raise ConfigError(f"memory budget must be positive (got {self.memory_budget_mb} MiB)")
 
-    def resolution_for(self, scene) -> int:
-        """Cells along the scene's longest axis (ignored when cell_size > 0)."""
-        if self.resolution > 0 or self.cell_size > 0:
-            return int(self.resolution)
-        from .voxels import surface_resolution
-        return surface_resolution(scene, self.surface_cells)
-
     def photon_count(self, voxels: int) -> int:
         """Photons to shoot for a voxelization of this many voxels."""
         if self.photons > 0:
@@ -101,31 +94,74 @@ class SolverConfig:
         return out
 
 
-PRESETS = {
-    # retuned from bench/tradeoff.py (bench/results/tradeoff.md): the preview shows the voxels themselves, where
-    # smoothing the photons and twice the surface cells pay on every test scene; default and high shade texels by
-    # lightcuts, where the smoothing made the Cornell box's lightmaps 1-1.5% brighter and worse (3.7% -> 4.6%)
-    "preview": SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0,
-                            tolerance=1e-2, max_bounces=16),
-    "default": SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0,
-                            tolerance=1e-3, max_bounces=64),
-    "high": SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
-                         tolerance=1e-4, max_bounces=128),
-}
+@dataclass(frozen=True)
+class LightcutsConfig:
+    """How points are shaded by lightcuts over the VPLs (docs/design.md
+    section 7): direct_vpls points on the area emitters; sky_vpls
+    directions of the sky; epsilon the cut's relative error bound; cap the
+    largest cut; seed."""
+    direct_vpls: int = 32_768
+    sky_vpls: int = 1024
+    epsilon: float = 0.02
+    cap: int = 1000
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.direct_vpls < 0 or self.sky_vpls < 0:
+            raise ConfigError("VPL counts must be >= 0")
+        if not 0 <= self.epsilon < 1:
+            raise ConfigError(f"epsilon must lie in [0, 1) (got {self.epsilon})")
+        if self.cap < 1:
+            raise ConfigError(f"the cut cap must be >= 1 (got {self.cap})")
 
 
-def solver_config(preset: str = "default", **overrides) -> SolverConfig:
-    """A preset with the given fields replaced (None values are left at the
-    preset's). An unknown preset or field name raises ConfigError."""
-    if preset not in PRESETS:
-        raise ConfigError(f"unknown preset {preset!r}; choose from {', '.join(PRESETS)}")
-    names = [f.name for f in fields(SolverConfig)]
-    for key in overrides:
-        if key not in names:
-            near = difflib.get_close_matches(key, names, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else f"; settings: {', '.join(names)}"
-            raise ConfigError(f"unknown solver setting {key!r}{hint}")
-    return replace(PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None})
+UV_MODES = ("per-triangle", "xatlas")
+TEXEL_SOURCES = ("voxels", "lightcuts")
+MAX_TEXEL_SAMPLES = 8
+
+
+@dataclass(frozen=True)
+class BakeConfig:
+    """solver: the voxel solution's settings; uv: 'per-triangle' (the
+    thesis's texture method) or 'xatlas' (charts); texel_density: texels
+    per scene unit (None: one texel per voxel cell); preset: the name it
+    came from; lightcuts: how texels are shaded (None: the voxel solution
+    reconstructed at each texel, the preview tier; else lightcuts over the
+    VPLs, the default and high tiers); preview_lightcuts: the VPLs of the
+    viewer's progressive preview when texels are not shaded by lightcuts;
+    texel_samples: lightcuts texels where the light changes sharply (a
+    shadow's edge, a contact) take the mean of a texel_samples x
+    texel_samples grid of points (1: one point per texel); texel_contrast:
+    what is sharp, a difference from a neighbouring texel of more than this
+    share of the larger; texel_interpolate: adaptive shading, texels
+    between lattice texels that agree within this share of the largest
+    take their mean instead of being shaded (0: every texel shaded)."""
+    solver: SolverConfig = field(default_factory=SolverConfig)
+    uv: str = "per-triangle"
+    texel_density: float | None = None
+    preset: str = "default"
+    lightcuts: LightcutsConfig | None = None
+    preview_vpls: int = 65_536
+    texel_samples: int = 1
+    texel_contrast: float = 0.1
+    texel_interpolate: float = 0.0
+    preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
+
+    def __post_init__(self):
+        if not 1 <= self.texel_samples <= MAX_TEXEL_SAMPLES:
+            raise ConfigError(f"texel samples must be a grid side from 1 to {MAX_TEXEL_SAMPLES} "
+                              f"(got {self.texel_samples})")
+        if not 0 <= self.texel_contrast < 1:
+            raise ConfigError(f"texel contrast must lie in [0, 1) (got {self.texel_contrast})")
+        if not 0 <= self.texel_interpolate < 1:
+            raise ConfigError(f"texel interpolation must lie in [0, 1) (got {self.texel_interpolate})")
+        if self.uv not in UV_MODES:
+            raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
+        if self.texel_density is not None and not (math.isfinite(self.texel_density) and self.texel_density > 0):
+            raise ConfigError(f"texel density must be a positive number of texels per scene unit "
+                              f"(got {self.texel_density})")
+        if self.preview_vpls < 0:
+            raise ConfigError(f"the preview's VPL count must be >= 0 (got {self.preview_vpls})")
 
 
 def check_threads(n) -> int:

@@ -11,6 +11,9 @@ then prints its one line and exits 130. A second Ctrl-C stops at once.
 SIGTERM (what `timeout`, systemd and docker send) is answered the same way,
 with exit status 143. A library user's process is left alone: its Ctrl-C
 behaves as Python's.
+
+`run` is how every command runs: one-line errors, these signals, warnings
+as one line each.
 """
 import os
 import signal
@@ -63,3 +66,57 @@ def checkpoint():
     if _held:
         _held.clear()
         raise KeyboardInterrupt
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Was this exception caused by Ctrl-C? numba's dispatcher, interrupted
+    while it converts arguments, raises a SystemError whose context is the
+    KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def run(func, *args):
+    """Calls func(*args) the way every voxgi command runs: one-line errors
+    with exit 2, Ctrl-C with exit 130, our warnings as one line each (other
+    libraries' warnings shown as usual), the process's warning hooks put
+    back after."""
+    import warnings
+    from .errors import VoxgiError, VoxgiWarning
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, VoxgiWarning):
+            print(f"warning: {message}", file=sys.stderr)
+        else:
+            original(message, category, filename, lineno, file, line)
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        try:
+            checkpoint()  # Ctrl-C while the command was starting
+            return func(*args)
+        except VoxgiError as e:
+            print(f"error: {e.one_line()}", file=sys.stderr)
+            return 2
+        except MemoryError:
+            print("error: out of memory (lower --resolution or --memory-budget)", file=sys.stderr)
+            return 2
+        except OSError as e:  # an output or input the system refused (a full disk, a permission)
+            if isinstance(e, BrokenPipeError):  # the output's reader left (`voxbake scenes | head -1`): quietly
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                return 141
+            where = f"{e.filename}: " if e.filename else ""
+            print(f"error: {where}{e.strerror or type(e).__name__}", file=sys.stderr)
+            return 2
+        except BaseException as e:
+            if interrupted(e):
+                print("interrupted: nothing was written", file=sys.stderr)
+                return exit_status()
+            raise
+        finally:
+            release_interrupts()

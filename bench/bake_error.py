@@ -28,7 +28,7 @@ LUM = np.array([0.2126, 0.7152, 0.0722])
 def texel_values(scene, config):
     from baker.bake.pipeline import bake_scene
     t = time.perf_counter()
-    _, _, texels, _ = bake_scene(scene, config)
+    texels = bake_scene(scene, config).texels
     return texels, time.perf_counter() - t
 
 
@@ -38,9 +38,7 @@ def main():
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     import baker
-    from baker.bake.pipeline import TEXEL_CONTRAST, TEXEL_INTERPOLATE, TEXEL_SAMPLES, bake_config
-    from baker.lightmap import AA_CONTRAST
-    from baker.lights import lightcuts_config
+    from baker.presets import PRESETS, bake_config, lightcuts_config
     scene = baker.load_scene("cornell_box")
     texel_values(scene, bake_config("preview", texel_density=16))  # compile
     high = lightcuts_config("high")
@@ -54,12 +52,13 @@ def main():
     m = r.mean()
     rows = []
     # (preset, epsilon, grid side, adaptive agreement, anti-aliasing contrast): the presets as shipped and around them
-    n_d, n_h = TEXEL_SAMPLES["default"], TEXEL_SAMPLES["high"]
+    d, h = PRESETS["default"], PRESETS["high"]
+    n_d, n_h, aa = d.texel_samples, h.texel_samples, h.texel_contrast
     runs = ([("preview", None, 1, 0.0, 0.0)]
-            + [("default", e, n, t, AA_CONTRAST) for e in (0.05, 0.02, 0.01) for n, t in
+            + [("default", e, n, t, aa) for e in (0.05, 0.02, 0.01) for n, t in
                ((1, 0.0), (n_d, 0.0), (n_d, 0.1))]
-            + [("default", e, n_d, TEXEL_INTERPOLATE["default"], TEXEL_CONTRAST["default"]) for e in (0.02, 0.01)]
-            + [("high", e, n, 0.0, AA_CONTRAST) for e in (0.02, 0.01) for n in (1, n_h)])
+            + [("default", e, n_d, d.texel_interpolate, d.texel_contrast) for e in (0.02, 0.01)]
+            + [("high", e, n, 0.0, aa) for e in (0.02, 0.01) for n in (1, n_h)])
     for preset, eps, n, interp, contrast in runs:
         tx, secs = texel_values(scene, bake_config(preset, texel_density=args.density, epsilon=eps,
                                                    texel_samples=n, texel_interpolate=interp,

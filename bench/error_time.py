@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from common import cached_reference, emit, rel_rmse
+from baker.scene import camera_for  # noqa: E402
 
 
 def main():
@@ -32,7 +33,8 @@ def main():
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     import baker
-    from baker.lights import build_lights, lightcuts_config
+    from baker.lights import build_lights
+    from baker.presets import lightcuts_config
     from baker.render import camera_array
     from baker.render.lightcuts_frame import render_lightcuts
     from baker.render.pathtrace import pathtrace
@@ -42,14 +44,14 @@ def main():
     for name in args.scenes.split(","):
         scene = baker.load_scene(name)
         bvh, surf = build_scene_bvh(scene), pack(scene)
-        cam = camera_array(scene.camera(None, bvh), s, s)
-        pathtrace(bvh, surf, camera_array(scene.camera(None, bvh), 8, 8), 8, 8, 2)  # compile
+        cam = camera_array(camera_for(scene, None, bvh), s, s)
+        pathtrace(bvh, surf, camera_array(camera_for(scene, None, bvh), 8, 8), 8, 8, 2)  # compile
         if name == args.scenes.split(",")[0]:  # compile the solver and the frame outside the timings
             warm = baker.solve(scene, baker.solver_config("preview", resolution=8, photons=2000), bvh=bvh,
                                surfaces=surf)
             lc = lightcuts_config("preview")
             render_lightcuts(bvh, surf, build_lights(scene, warm, surf, lc, bvh),
-                             camera_array(scene.camera(None, bvh), 8, 8), 8, 8, lc.epsilon, lc.cap)
+                             camera_array(camera_for(scene, None, bvh), 8, 8), 8, 8, lc.epsilon, lc.cap)
         ref, lamp, ref_noise, _ = cached_reference(name, scene, bvh, surf, cam, s, args.ref_spp)
         rows = []
         pt_pts = []

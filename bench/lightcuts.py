@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from common import emit
+from baker.scene import camera_for  # noqa: E402
 
 
 def main():
@@ -24,7 +25,8 @@ def main():
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     import baker
-    from baker.lights import Lights, build_lights, build_tree, lightcuts_config, make_vpls
+    from baker.lights import Lights, build_lights, build_tree, make_vpls
+    from baker.presets import lightcuts_config
     from baker.render import camera_array
     from baker.render.lightcuts_frame import render_lightcuts
     from baker.scene import build_scene_bvh, pack
@@ -32,7 +34,7 @@ def main():
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = baker.solve(scene, baker.solver_config("default"), bvh=bvh, surfaces=surf)
     s = args.size
-    cam = camera_array(scene.camera(None), s, s)
+    cam = camera_array(camera_for(scene, None), s, s)
     rows, times, sizes = [], [], []
     n = 1024
     counts = []
@@ -52,8 +54,8 @@ def main():
         tf = time.perf_counter() - t
         times.append(tf)
         sizes.append(len(vpls))
-        rows.append([f"{len(vpls):,}", f"{tb:.3f}", f"{tf:.2f}", f"{st['cut_mean']:.0f}", st["cut_max"],
-                     f"{st['shadow_rays_per_pixel']:.0f}"])
+        rows.append([f"{len(vpls):,}", f"{tb:.3f}", f"{tf:.2f}", f"{st.cut_mean:.0f}", st.cut_max,
+                     f"{st.shadow_rays_per_pixel:.0f}"])
     slope = np.polyfit(np.log(sizes), np.log(times), 1)[0] if len(times) > 1 else 0
     emit(args, f"Lightcuts frame {s}x{s} (Cornell box, epsilon 0.02, cap 1000) against VPL count; "
                f"log-log slope of frame time {slope:.2f}", rows,
@@ -63,7 +65,7 @@ def main():
                      0, 0)
     lights = Lights(vpls, build_tree(vpls, 0))
     b = 24
-    cam_b = camera_array(scene.camera(None), b, b)
+    cam_b = camera_array(camera_for(scene, None), b, b)
     t = time.perf_counter()
     fast, st = render_lightcuts(bvh, surf, lights, cam_b, b, b, 0.02, 1000, aa=False)
     tl = time.perf_counter() - t
@@ -82,11 +84,11 @@ def main():
         t1 = time.perf_counter()
         lights = build_lights(scene, sol2, surf, lightcuts_config("default"), bvh)
         t2 = time.perf_counter()
-        img, st = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), f, f), f, f)
+        img, st = render_lightcuts(bvh, surf, lights, camera_array(camera_for(scene, None), f, f), f, f)
         t3 = time.perf_counter()
         emit(args, f"Cornell box {f}x{f}, default preset: solve + lights + lightcuts frame",
              [[f"{t1 - t0:.2f}", f"{t2 - t1:.2f}", f"{t3 - t2:.2f}", f"{t3 - t0:.2f}", f"{len(lights.vpls):,}",
-               f"{st['cut_mean']:.0f}", st["edge_pixels"]]],
+               f"{st.cut_mean:.0f}", st.edge_pixels]],
              ["solve s", "lights s", "frame s", "total s", "VPLs", "cut mean", "edge pixels (16 spp)"])
 
 

@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from common import cached_reference, emit, rel_rmse
+from baker.scene import camera_for  # noqa: E402
 
 MITSUBA_SCRIPT = r'''
 import json, sys, time
@@ -115,7 +116,7 @@ def main():
     spps = [int(x) for x in args.spp.split(",")]
     scene = baker.load_scene("cornell_box")
     bvh, surf = build_scene_bvh(scene), pack(scene)
-    camera = scene.camera(None, bvh)
+    camera = camera_for(scene, None, bvh)
     cam = camera_array(camera, s, s)
     pathtrace(bvh, surf, camera_array(camera, 8, 8), 8, 8, 4)  # compile
     ref, lamp, ref_noise, ref_s = cached_reference("cornell_box", scene, bvh, surf, cam, s, args.ref_spp)
@@ -162,7 +163,7 @@ def main():
     bvh, surf = build_scene_bvh(scene), pack(scene)
     wrows = []
     for cam_index in range(1):
-        c = scene.camera(cam_index if scene.cameras else None, bvh)
+        c = camera_for(scene, cam_index if scene.cameras else None, bvh)
         t = time.perf_counter()
         r = pathtrace(bvh, surf, camera_array(c, w, w), w, w, 1 << 20, seed=1, noise=0.02,
                       time_limit=args.walkthrough_limit)

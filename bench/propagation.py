@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from common import ROOT, emit
-from baker.config import solver_config
+from baker.presets import solver_config
 from baker.solve.directions import direction_set
 from baker.solve.propagate import LineSweeper
 from baker.solve import solve

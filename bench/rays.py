@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from common import ROOT, emit
+from baker.scene import camera_for  # noqa: E402
 from baker.errors import VoxgiWarning
 from baker.scene import bvh as bvh_mod
 from baker.render import camera_array
@@ -63,7 +64,7 @@ def offset(p, n, d, eps):
 
 def ray_sets(scene, tree, n, rng):
     side = int(np.sqrt(n))
-    cam = camera_array(scene.camera(), side, side)
+    cam = camera_array(camera_for(scene), side, side)
     ys, xs = np.mgrid[0:side, 0:side]
     a = 2 * (xs.ravel() + 0.5) / side - 1
     b = 1 - 2 * (ys.ravel() + 0.5) / side

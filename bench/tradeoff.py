@@ -48,6 +48,7 @@ import time
 import numpy as np
 
 from common import ROOT, cached_reference, machine, table
+from baker.scene import camera_for  # noqa: E402
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 STAGES = ("bvh", "voxelize", "photons", "propagation", "charts", "lights", "texels", "atlas")
@@ -55,9 +56,8 @@ STAGES = ("bvh", "voxelize", "photons", "propagation", "charts", "lights", "texe
 
 def knob_values(preset):
     """(knob, value, overrides for bake_config) around a preset."""
-    from baker.config import PRESETS
-    from baker.lights import LIGHTCUTS_PRESETS
-    s, lc = PRESETS[preset], LIGHTCUTS_PRESETS[preset]
+    from baker.presets import PRESETS
+    s, lc = PRESETS[preset].solver, PRESETS[preset].lightcuts
     out = []
     for f in (0.25, 0.5, 2.0):
         out.append(("surface_cells", int(s.surface_cells * f), {"surface_cells": int(s.surface_cells * f)}))
@@ -123,8 +123,8 @@ def bake_point(scene, bvh, surf, cam, size, preset, overrides):
     """One bake at a preset with overrides: (stage seconds, total s, (peak, before) resident MiB, voxels,
     image)."""
     from baker.bake.pipeline import bake_config, bake_scene
-    from baker.bake.shade import render_bake
-    from baker.config import solver_config
+    from baker.render.lightmap_view import render_bake
+    from baker.presets import solver_config
     from baker.stats import Stats
     o = dict(overrides)
     tpc = o.pop("texels_per_cell", None)
@@ -132,9 +132,9 @@ def bake_point(scene, bvh, surf, cam, size, preset, overrides):
     cap = lc_keys.pop("cap", None)
     density = None
     if tpc is not None:
-        from baker.voxels import grid_for
+        from baker.voxels import grid_for, resolution_for
         cfg = solver_config(preset, **o)
-        density = tpc / grid_for(scene, cfg.resolution_for(scene), cfg.cell_size).h
+        density = tpc / grid_for(scene, resolution_for(scene, cfg), cfg.cell_size).h
     config = bake_config(preset, texel_density=density, **lc_keys, **o)
     if cap is not None:
         from dataclasses import replace
@@ -142,7 +142,8 @@ def bake_point(scene, bvh, surf, cam, size, preset, overrides):
     base = peak_reset()
     stats = Stats("bake")
     t = time.perf_counter()
-    bake, solution, _, _ = bake_scene(scene, config, stats=stats, bvh=bvh, surfaces=surf)
+    result = bake_scene(scene, config, stats=stats, bvh=bvh, surfaces=surf)
+    bake, solution = result.bake, result.solution
     total = time.perf_counter() - t
     peak = _status("VmHWM")  # the process's peak during the bake (its level before it: `base`)
     img = render_bake(bake, cam, size, size)  # its own BVH: the bake orders its triangles by page
@@ -235,7 +236,7 @@ def main():
     for name in ([] if args.replot else args.scenes.split(",")):
         scene = baker.load_scene(name)
         bvh, surf = build_scene_bvh(scene), pack(scene)
-        cam = scene.camera(None, bvh)
+        cam = camera_for(scene, None, bvh)
         ref, lamp, ref_noise, ref_s = cached_reference(name, scene, bvh, surf, camera_array(cam, s, s), s,
                                                        args.ref_spp)
         print(f"{name}: reference {args.ref_spp} spp ({ref_s:.0f} s, noise {100 * ref_noise:.2f}%)", flush=True)

@@ -16,6 +16,7 @@ import tempfile
 import time
 
 from common import ROOT, emit
+from baker.scene import camera_for  # noqa: E402
 
 
 def main():
@@ -45,7 +46,7 @@ def main():
         fbo = ctx.framebuffer([color], depth)
         fbo.use()
         times = []
-        for cam in bake.scene.cameras or [bake.scene.camera(None)]:
+        for cam in bake.scene.cameras or [camera_for(bake.scene, None)]:
             for _ in range(3):  # warm-up: shader variants, texture upload
                 fbo.clear(depth=1.0)
                 r.render(cam, args.width, args.height)
@@ -60,7 +61,7 @@ def main():
         color.release()
         depth.release()
         from viewer.preview import Preview
-        pv = Preview(ctx, r, bake.scene.cameras[0] if bake.scene.cameras else bake.scene.camera(None), args.width,
+        pv = Preview(ctx, r, bake.scene.cameras[0] if bake.scene.cameras else camera_for(bake.scene, None), args.width,
                      args.height, per_frame=16)
         pv.frame()
         ctx.finish()

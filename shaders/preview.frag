@@ -1,17 +1,18 @@
 #version 330 core
 // One light's irradiance at every pixel of the G-buffer, added to an accumulation buffer
 // (docs/design.md section 7), the same formulas as the CPU:
-//   kind 0, a VPL:        power x V cos_l cos_p / (pi r^2 + A)  (the bounded near-field term)
-//   kind 1, a direction:  power x V cos_p                        (the sky's VPLs, a sun)
-//   kind 2, a point:      power x V cos_p / r^2                  (kind 3, a spot: times glTF's falloff)
-// V: for kinds 0, 2, 3 from the light's cube of distances (six faces side by side in one texture);
-// for kind 1 from one orthographic map of distances along the direction (face 0).
+//   KIND_AREA, a VPL:           power x V cos_l cos_p / (pi r^2 + A)  (the bounded near-field term)
+//   KIND_DIRECTIONAL:           power x V cos_p                        (the sky's VPLs, a sun)
+//   KIND_POINT:                 power x V cos_p / r^2                  (KIND_SPOT: times glTF's falloff)
+// V: for points from the light's cube of distances (six faces side by side in one texture); for
+// directions from one orthographic map of distances along the direction (face 0). The KIND_ codes are
+// defined by the program's builder (viewer/context.py), from baker.scene.model.LightKind.
 uniform sampler2D u_position;
 uniform sampler2D u_normal;
 uniform sampler2D u_shadow;
 uniform int u_kind;
-uniform vec3 u_light;        // position (kind 1: unused)
-uniform vec3 u_light_normal; // the VPL's normal; kind 1: towards the light; kind 3: the spot's axis
+uniform vec3 u_light;        // position (KIND_DIRECTIONAL: unused)
+uniform vec3 u_light_normal; // the VPL's normal; KIND_DIRECTIONAL: towards the light; KIND_SPOT: the axis
 uniform vec3 u_power;
 uniform float u_area;
 uniform vec2 u_cones;        // spot: cos of the inner and outer cone
@@ -39,7 +40,7 @@ void main() {
     vec4 p = texture(u_position, v_uv);
     if (p.w == 0.0) discard;
     vec3 n = texture(u_normal, v_uv).xyz;
-    if (u_kind == 1) {
+    if (u_kind == KIND_DIRECTIONAL) {
         float cp = dot(n, u_light_normal);
         if (cp <= COS_MIN) discard;
         // the map stores each texel's nearest surface along the direction, measured towards the light
@@ -55,13 +56,13 @@ void main() {
     float cp = dot(n, w);
     if (cp <= COS_MIN) discard;
     float g;
-    if (u_kind == 0) {
+    if (u_kind == KIND_AREA) {
         float cl = -dot(u_light_normal, w);
         if (cl <= COS_MIN) discard;
         g = cl * cp / (PI * r2 + u_area);
     } else {
         g = cp / r2;
-        if (u_kind == 3) {
+        if (u_kind == KIND_SPOT) {
             float a = clamp((-dot(w, u_light_normal) - u_cones.y) / max(u_cones.x - u_cones.y, 1e-4), 0.0, 1.0);
             g *= a * a;
         }

@@ -7,6 +7,8 @@ import os
 # one- or two-core machine (the other tests use the cores there are).
 os.environ.setdefault("NUMBA_NUM_THREADS", str(max(4, os.cpu_count() or 1)))
 
+import contextlib  # noqa: E402
+import io  # noqa: E402
 import warnings  # noqa: E402
 
 import numba  # noqa: E402
@@ -52,6 +54,12 @@ def cornell():
     return load_scene(os.path.join(here, "scenes", "cornell_box.glb"))
 
 
+REALSCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared", "realscenes")
+# McGuire's Cornell box (Williams College 2011, CC BY 3.0): its short box's faces come before their `usemtl`, so
+# they take the red wall's material, and every box repeats its front face as its bottom
+MCGUIRE_CORNELL = os.path.join(REALSCENES, "mcguire_cornellbox", "CornellBox-Original.obj")
+
+
 def skip_without_shared(path, what):
     """Skips a test whose public file (read through ../shared, never committed)
     is absent; on CI (CI=true), where ../shared lies beside the clone, its
@@ -61,3 +69,18 @@ def skip_without_shared(path, what):
     if os.environ.get("CI"):
         pytest.fail(f"{what} ({path}) is missing on CI, where ../shared must lie beside the clone")
     pytest.skip(f"{what} is read from ../shared/realscenes, absent here")
+
+
+def cli(*args, main=None):
+    """(exit status, stdout, stderr) of `voxbake ARGS` (or of `main`, e.g.
+    voxview's) run in this process: for the commands' tests where no
+    signal is involved."""
+    if main is None:
+        from baker.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as e:
+            code = e.code
+    return code, out.getvalue(), err.getvalue()

@@ -1,21 +1,38 @@
 """The command line as a user meets it: refusals before any work, one-line
-errors, Ctrl-C at any moment, warnings."""
+errors, what each command prints and writes, Ctrl-C at any moment,
+warnings. Commands run in this process (conftest.cli) unless a signal, a
+time bound or another working folder is what the test is about."""
+import json
+import os
 import signal
 import subprocess
 import sys
 import time
 import warnings
 
+import numpy as np
 import pytest
 
-from baker.cli import run
-from baker.config import solver_config
+from baker.bake import read_bake
 from baker.errors import ConfigError, VoxgiWarning
+from baker.presets import PRESETS, solver_config
+from baker.render import METHODS
+from baker.startup import run
+
+from .conftest import cli
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CORNELL = os.path.join(ROOT, "scenes", "cornell_box.glb")
 
 
 def voxbake(*args, cwd=None, timeout=300):
     return subprocess.run([sys.executable, "-m", "baker", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd, timeout=timeout)
+
+
+def refused(code, err, message):
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert len(err.strip().splitlines()) == 1, err
 
 
 def test_bad_settings_are_refused_before_work(tmp_path):
@@ -32,11 +49,125 @@ def test_bad_settings_are_refused_before_work(tmp_path):
         (["--noise", "0"], "argument --noise: must be a finite number above 0 and at most 1"),
         (["--time-limit", "-1"], "argument --time-limit: must be a finite number"),
         (["--method", "voxels", "--noise", "0.02"], "apply to --method pathtrace"),
+        (["--camera", "nope"], "no camera named 'nope'"),
+        (["--spp", "0"], "argument --spp: must lie in 1..1,048,576, got 0"),
+        (["--method", "voxels", "--radius", "0"], "argument --radius: must lie in 1..64"),
+        (["--width", "0"], "argument --width: must lie in 1..16,384"),
+        (["--look-from", "1,2"], "X,Y,Z"),
+        (["--method", "nope"], "invalid choice"),
     ]
     for extra, message in cases:
-        r = voxbake("render", "cornell_box", "-o", out, *extra)
-        assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr, (extra, r.stderr)
+        refused(*cli("render", CORNELL, "-o", out, *extra)[::2], message)
         assert not out.exists()
+    refused(*cli("render", CORNELL, "-o", tmp_path / "no" / "x.png")[::2], "output folder does not exist")
+    assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+def test_bake_refuses_bad_settings(tmp_path):
+    cases = [(["-o", tmp_path / "x.png"], "unsupported output format"),
+             (["-o", tmp_path / "x.glb", "--texel-density", "-2"],
+              "argument --texel-density: must be a finite number above 0"),
+             (["-o", tmp_path / "x.glb", "--uv", "atlas"], "invalid choice"),
+             (["-o", tmp_path / "x.glb", "--texel-samples", "0"], "argument --texel-samples: must lie in 1..8"),
+             (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "argument --texel-samples: must lie in 1..8")]
+    for args, message in cases:
+        refused(*cli("bake", "cornell_box", *args)[::2], message)
+    assert os.listdir(tmp_path) == []
+
+
+def test_info_and_help(tmp_path):
+    code, out, _ = cli("info", CORNELL)
+    assert code == 0 and "triangles  32" in out and "published" in out and "total emitted power" in out
+    code, _, err = cli("info", tmp_path / "nope.obj")
+    assert code == 2 and err.strip() == f"error: {tmp_path / 'nope.obj'}: file not found"
+    for cmd in ([], ["info"], ["render"], ["bake"], ["audit"]):
+        code, out, _ = cli(*cmd, "--help")
+        assert code == 0 and "usage: voxbake" in out
+
+
+def test_help_is_generated_from_the_presets_and_the_methods():
+    """--help lists every preset with its values and every render method
+    with its description, from the tables themselves."""
+    _, bake_help, _ = cli("bake", "--help")
+    _, render_help, _ = cli("render", "--help")
+    for p in PRESETS.values():
+        for text in (bake_help, render_help):
+            assert f"  {p.name:<8} {p.about}" in text
+            assert f"surface cells {p.solver.surface_cells:,}" in text
+            assert f"direct VPLs {p.lightcuts.direct_vpls:,}" in text
+    flat = " ".join(bake_help.split())
+    assert "(preset: " + "/".join(str(p.solver.surface_cells) for p in PRESETS.values()) + ")" in flat
+    assert "(preset: " + "/".join(str(p.texel_samples) for p in PRESETS.values()) + ";" in flat
+    flat = " ".join(render_help.split())
+    for m in METHODS.values():
+        assert m.name in render_help and " ".join(m.about.split()[:6]) in flat, m.name
+
+
+def test_builtin_scenes_by_name_from_any_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("info", "cornell_box")
+    assert code == 0 and "triangles  32" in out, err
+    code, out, _ = cli("scenes")
+    assert code == 0 and "cornell_box" in out and "furnace_box" in out
+
+
+def test_command_line_camera(tmp_path):
+    code, _, err = cli("render", "cornell_box", "--look-from", "0.278,0.273,-0.5", "--look-at", "0.278,0.273,0",
+                       "--fov", "30", "--spp", "1", "--width", "8", "--height", "8", "-o", tmp_path / "c.png",
+                       "--stats", tmp_path / "s.json")
+    assert code == 0, err
+    assert json.loads((tmp_path / "s.json").read_text())["counters"]["camera"] == "command line"
+
+
+def test_voxel_view_and_stats(tmp_path):
+    from PIL import Image
+    out, stats = tmp_path / "v.png", tmp_path / "s.json"
+    code, _, err = cli("render", CORNELL, "--method", "voxels", "--preset", "preview", "--resolution", "16",
+                       "--width", "48", "--height", "48", "-o", out, "--stats", stats)
+    assert code == 0, err
+    img = np.asarray(Image.open(out))
+    assert img.shape == (48, 48, 3) and img.mean() > 20
+    s = json.loads(stats.read_text())
+    for key in ("voxels", "directions_per_bounce", "discrete_rays", "photons", "bounces", "stop_reason"):
+        assert key in s["counters"], key
+    for stage in ("voxelize", "photons", "propagation", "voxel_view"):
+        assert s["stages"][stage]["seconds"] >= 0 and s["stages"][stage]["peak_rss_mb"] > 0
+    code, _, err = cli("render", "scenes/cornell_box.glb", "--method", "voxels", "--resolution", "4000",
+                       "--memory-budget", "50", "-o", tmp_path / "x.png")
+    assert code == 2 and err.startswith("error: scenes/cornell_box.glb: voxelization"), err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_bake_writes_a_readable_file_and_a_summary(tmp_path):
+    out, stats = tmp_path / "c.glb", tmp_path / "s.json"
+    code, stdout, err = cli("bake", "cornell_box", "-o", out, "--preset", "preview", "--resolution", "12",
+                            "--photons", "20000", "--stats", stats)
+    assert code == 0, err
+    for word in ("voxels", "directions per bounce", "photons", "texels", "points shaded", "maps stored", "pages",
+                 "dedup ratio", "seconds", "peak MiB", "wrote"):
+        assert word in stdout
+    bake = read_bake(out)
+    s = json.load(open(stats))
+    assert s["counters"]["pages"] == len(bake.pages) and "texels" in s["stages"]
+    assert sorted(os.listdir(tmp_path)) == ["c.glb", "s.json"]  # nothing else left behind
+
+
+def test_every_render_method_runs_from_the_command_line(tmp_path):
+    """Each of METHODS through `voxbake render`, with the stats it records."""
+    bake = tmp_path / "b.glb"
+    assert cli("bake", "cornell_box", "-o", bake, "--preset", "preview", "--resolution", "12", "--photons",
+               "20000", "--preview-vpls", "64")[0] == 0
+    extra = {"pathtrace": ["--spp", "2"], "instant-radiosity": ["--frames", "2"], "lightmap": []}
+    expect = {"pathtrace": "spp", "voxels": "discrete_rays", "lightcuts": "cut_mean", "instant-radiosity": "ir_frames",
+              "lightmap": "camera"}
+    for name, method in METHODS.items():
+        scene = bake if method.bake else "cornell_box"
+        out, stats = tmp_path / f"{name}.exr", tmp_path / f"{name}.json"
+        code, _, err = cli("render", scene, "--method", name, "--preset", "preview", "--resolution", "12",
+                           "--photons", "20000", "--direct-vpls", "64", "--width", "8", "--height", "8", "-o", out,
+                           "--stats", stats, *extra.get(name, []))
+        assert code == 0, (name, err)
+        assert expect[name] in json.loads(stats.read_text())["counters"], name
 
 
 def test_absurd_resolution_is_refused_at_once(tmp_path):

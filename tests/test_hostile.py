@@ -17,24 +17,13 @@ import time
 
 import pytest
 
-from baker.cli import main
 from baker.errors import BakeFileError, SceneError, VoxgiError
 from baker.scene import load_scene
 from baker.scene.refs import LoadLimits
 
+from .conftest import cli
 from .hostile import (SECRET, TRIANGLE, glb_bytes, resign_bake, split_glb, tiny_png_header, triangle_doc,
                       write_gltf, write_obj)
-
-
-def cli(*args):
-    """(exit status, stdout, stderr) of `voxbake ARGS` run in this process."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as e:
-            code = e.code
-    return code, out.getvalue(), err.getvalue()
 
 
 def voxbake(*args, timeout=120, **kw):

@@ -49,10 +49,10 @@ def test_open_or_one_sided_surfaces_are_not_shells(make_scene):
 
 
 def test_dropped_duplicates_are_counted():
-    import os
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     from baker import load_scene
-    path = os.path.join(here, "scenes", "cornell_box_original.obj")
+    from .conftest import MCGUIRE_CORNELL, skip_without_shared
+    skip_without_shared(MCGUIRE_CORNELL, "McGuire's Cornell box OBJ")
+    path = MCGUIRE_CORNELL
     report = geometry_report(load_scene(path))
     assert report.duplicates_dropped == 4 and "4 duplicate triangles dropped" in report.summary()
     assert report.two_sided_emitters == 2 and "both faces emit" in report.summary()  # the lamp, read two-sided

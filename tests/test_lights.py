@@ -5,11 +5,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests import naive
-from baker.config import solver_config
-from baker.lights import (KIND_AREA, KIND_DIRECTIONAL, VPLs, build_lights, build_tree, irradiance,
-                          lightcuts_config)
+from baker.presets import solver_config
+from baker.lights import KIND_AREA, KIND_DIRECTIONAL, VPLs, build_lights, build_tree, irradiance
+from baker.presets import lightcuts_config
 from baker.scene import build_scene_bvh, pack
 from baker.solve import solve
+from baker.scene import camera_for
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 
@@ -68,6 +69,7 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
     and the cosines do prune: with the VPLs' normals spread `spread`
     around one axis, some nodes are bounded well below lum / (pi d^2)
     (p beside or behind their cone, or their box below p's plane)."""
+    from baker.lights import tree_arrays
     from baker.lights.lightcuts import COS_MIN, node_bound, node_patches
     rng = np.random.default_rng(seed)
     axis = rng.normal(size=3)
@@ -78,6 +80,7 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
     t = build_tree(v, seed)
     patch = np.where(v.indirect, v.area, 0.0)
     node_patch = node_patches(t.rep, t.right, patch)
+    tree = tree_arrays(t, node_patch)
     lum = v.power @ LUM
     pruned = near = 0
     for _ in range(8):
@@ -97,7 +100,7 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
         for node in range(len(t)):
             if t.right[node] < 0:
                 continue
-            b = node_bound(t.lo, t.hi, t.axis, t.cos, t.lum, t.kind, node, *p, *pn, node_patch)
+            b = node_bound(tree, node, *p, *pn)
             leaves = leaves_of(t, node)
             assert b >= (lum[leaves] * g[leaves]).sum() * (1 - 1e-9), node
             d2 = (np.maximum(0, np.maximum(t.lo[node] - p, p - t.hi[node])) ** 2).sum()
@@ -180,7 +183,7 @@ def camera_points(scene, bvh, surf, size):
     """The shading points a size x size frame of the scene's camera sees."""
     from baker.render import camera_array
     from baker.render.lightcuts_frame import trace_samples
-    cam = camera_array(scene.camera(None), size, size)
+    cam = camera_array(camera_for(scene, None), size, size)
     pts, nrm, base, alb, shade, mat, depth = trace_samples(bvh.arrays, surf.arrays, cam, size, size,
                                                            np.arange(size * size), np.zeros(size * size, np.int64),
                                                            1, 1e-5)
@@ -317,7 +320,7 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     sol = solve(scene, solver_config("default"), bvh=bvh, surfaces=surf)
     lights = build_lights(scene, sol, surf, lightcuts_config("default"), bvh)
     s = 48
-    img, stats = render_lightcuts(bvh, surf, lights, camera_array(scene.camera(None), s, s), s, s)
+    img, stats = render_lightcuts(bvh, surf, lights, camera_array(camera_for(scene, None), s, s), s, s)
     ref = render(scene, 0, s, s, spp=1024, bvh=bvh, surfaces=surf)
     assert np.isfinite(img).all() and img.min() >= 0
     a = (img @ LUM).reshape(s // 4, 4, s // 4, 4).mean(axis=(1, 3))
@@ -325,7 +328,7 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     lit = b < 0.5 * b.max()  # the lamp's blocks out
     assert np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean() < 0.035
     assert abs(a[lit].mean() / b[lit].mean() - 1) < 0.015
-    assert stats["edge_pixels"] > 0 and stats["cut_mean"] > 1
+    assert stats.edge_pixels > 0 and stats.cut_mean > 1
 
 
 def test_ordered_list_is_an_unbiased_running_average(cornell_lights):
@@ -347,12 +350,12 @@ def test_ordered_list_is_an_unbiased_running_average(cornell_lights):
     for m in (64, 1024, 4096):  # the list's own estimate of the total power
         assert np.allclose(order.power[:m].mean(axis=0), total, rtol=0.05)
     s = 32
-    cam = camera_array(scene.camera(None), s, s)
+    cam = camera_array(camera_for(scene, None), s, s)
     brute, _ = render_lightcuts(bvh, surf, lights, cam, s, s, brute=True, aa=False)
     errs = []
     for frames in (16, 256):
         img, st = render_instant_radiosity(bvh, surf, order, cam, s, s, 16, frames)
-        assert st["frames"] == frames and st["vpls_used"] == 16 * frames
+        assert st.frames == frames and st.vpls_used == 16 * frames
         a, b = img @ LUM, brute @ LUM
         lit = b > 0
         errs.append(np.sqrt(np.mean((a[lit] - b[lit]) ** 2)) / b[lit].mean())
@@ -432,7 +435,7 @@ def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
     sol = solve(scene, solver_config("preview", resolution=16, photons=20_000), bvh=bvh, surfaces=surf)
     lights = build_lights(scene, sol, surf, lightcuts_config("default"))
     s = 32
-    cam = camera_array(scene.camera(None), s, s)
+    cam = camera_array(camera_for(scene, None), s, s)
     n = s * s
     pix = np.repeat(np.arange(n), AA * AA)
     pts = trace_samples(bvh.arrays, surf.arrays, cam, s, s, pix, np.tile(np.arange(AA * AA), n), AA,
@@ -450,7 +453,7 @@ def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
     assert 10 <= crossed.sum() <= 3 * s
     img, stats = render_lightcuts(bvh, surf, lights, cam, s, s)
     got = img[..., 1].reshape(n).astype(np.float64)
-    assert stats["edge_pixels"] == 0 and stats["contrast_pixels"] >= crossed.sum()
+    assert stats.edge_pixels == 0 and stats.contrast_pixels >= crossed.sum()
     assert np.allclose(got[crossed], mean[crossed], rtol=1e-5, atol=0)
     assert np.all((mean[crossed] > 0.02 * exact.max()) & (mean[crossed] < exact[crossed].max(axis=1)))
     either = np.isclose(got, centre, rtol=1e-5, atol=1e-12) | np.isclose(got, mean, rtol=1e-5, atol=1e-12)

@@ -8,6 +8,7 @@ from baker.render import camera_array
 from scenes.generate import emission_test, furnace_box, GltfBuilder, quad
 from tests.threads import same_for_any_thread_count
 from tests.naive import irradiance_under_rectangle
+from baker.scene import camera_for
 
 
 def prepare(scene):
@@ -27,7 +28,7 @@ def point_radiance(scene, point, n, seed=1):
 def test_furnace_radiance_is_le_over_one_minus_rho(make_scene, rho):
     scene = make_scene(furnace_box(albedo=rho, emission=1.0), f"furnace_{rho}")
     tree, surf = prepare(scene)
-    img = render_pathtrace(tree, surf, camera_array(scene.camera(), 24, 24), 24, 24, 64, seed=3)
+    img = render_pathtrace(tree, surf, camera_array(camera_for(scene), 24, 24), 24, 24, 64, seed=3)
     expected = (1.0 / np.pi) / (1.0 - rho)
     px = img[..., 0].astype(np.float64).ravel()
     stderr = px.std(ddof=1) / np.sqrt(px.size)
@@ -78,7 +79,7 @@ def test_point_light_and_back_faces(tmp_path):
 
 def test_same_image_for_any_thread_count(cornell):
     tree, surf = prepare(cornell)
-    cam = camera_array(cornell.camera(), 24, 24)
+    cam = camera_array(camera_for(cornell), 24, 24)
     a = same_for_any_thread_count(lambda: render_pathtrace(tree, surf, cam, 24, 24, 8, seed=9))
     c = render_pathtrace(tree, surf, cam, 24, 24, 8, seed=10)
     assert not np.array_equal(a, c)  # the seed matters, so the equality above means something
@@ -125,7 +126,7 @@ def test_furnace_pixels_are_no_noisier_than_independent_samples(make_scene):
     over 8); stratified samples come in well under it."""
     scene = make_scene(furnace_box(albedo=0.5, emission=1.0), "furnace_0.5")
     tree, surf = prepare(scene)
-    img = render_pathtrace(tree, surf, camera_array(scene.camera(), 32, 32), 32, 32, 64, seed=5)
+    img = render_pathtrace(tree, surf, camera_array(camera_for(scene), 32, 32), 32, 32, 64, seed=5)
     px = img[..., 0].astype(np.float64).ravel()
     one = point_radiance(scene, [0.1, 0.0, 0.2], 20000, seed=6)[:, 0]
     bound = one.std(ddof=1) / np.sqrt(64)
@@ -145,13 +146,13 @@ def test_cornell_box_noise_and_mean(cornell):
     filter's image mean does not depend on the resolution: 16x16)."""
     from baker.render.compare import LUMINANCE, lit_pixels
     tree, surf = prepare(cornell)
-    cam = camera_array(cornell.camera(None, tree), 128, 128)
+    cam = camera_array(camera_for(cornell, None, tree), 128, 128)
     a = render_pathtrace(tree, surf, cam, 128, 128, 256, seed=1).astype(np.float64) @ LUMINANCE
     b = render_pathtrace(tree, surf, cam, 128, 128, 256, seed=2).astype(np.float64) @ LUMINANCE
     lit = lit_pixels((a + b) / 2)
     rel = np.sqrt(np.mean((a - b)[lit] ** 2)) / ((a + b) / 2)[lit].mean()
     assert rel < 0.065, rel
-    ref = render_pathtrace(tree, surf, camera_array(cornell.camera(None, tree), 16, 16), 16, 16, 4096, seed=3)
+    ref = render_pathtrace(tree, surf, camera_array(camera_for(cornell, None, tree), 16, 16), 16, 16, 4096, seed=3)
     assert abs(a.mean() / (ref.astype(np.float64) @ LUMINANCE).mean() - 1) < 0.01
 
 
@@ -164,7 +165,7 @@ def test_noise_estimate_tracks_the_true_error(cornell):
     from baker.render.compare import LUMINANCE
     from baker.render.pathtrace import pathtrace
     tree, surf = prepare(cornell)
-    cam = camera_array(cornell.camera(None, tree), 32, 32)
+    cam = camera_array(camera_for(cornell, None, tree), 32, 32)
     ref = pathtrace(tree, surf, cam, 32, 32, 2048, seed=11)
     lamp = ref.lamp
     r = ref.image.astype(np.float64) @ LUMINANCE

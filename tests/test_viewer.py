@@ -226,7 +226,7 @@ def test_gpu_preview_punctual_lights_and_sky(ctx, make_scene, tmp_path):
     b.light("sun", "directional", intensity=2.0, direction=(-0.4, -1, -0.3))
     b.camera("view", (0, 2.2, 3.2), (0, -0.6, -1))
     scene = replace(make_scene(b, "preview_punctual"), sky=Sky(np.array([0.3, 0.35, 0.4]), True))
-    bake, *_ = bake_scene(scene, bake_config("preview", resolution=16, photons=50_000, preview_vpls=2048))
+    bake = bake_scene(scene, bake_config("preview", resolution=16, photons=50_000, preview_vpls=2048)).bake
     write_bake(tmp_path / "p.glb", bake)
     back = read_bake(tmp_path / "p.glb")
     s = 48

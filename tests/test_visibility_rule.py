@@ -1,9 +1,9 @@
 """The visibility rule clause by clause, on hand-built lines of a few voxels
 (docs/design.md section 4). Each line runs along +x through cells 0..4
 (y = z = 0, cell size 1); one family, s = (1, 0, 0). `seen` tells which
-voxel each one's ray met (or -1). Each test fails if its clause is taken
-out of the kernel (checked by hand when the tests were written: the
-expected voxel changes)."""
+voxel each one's ray met (or -1). Each clause of the rule is missed by
+some test here when it is turned off (tests/test_clauses.py runs them with
+each clause off in turn)."""
 import dataclasses
 from dataclasses import dataclass, field
 
@@ -321,3 +321,64 @@ def test_grazing_ray_gathers_a_flat_floor_where_it_meets_it():
     vox = floor_under_ray()
     assert seen(vox)[0] == 3
     assert seen(dataclasses.replace(vox, planar=np.zeros(len(vox), bool)))[0] == 1
+
+
+def test_convex_edge_with_the_waiting_voxel_when_another_joined_since():
+    """The top of a box near its edge waits; a voxel low on the box's side
+    joins the line after it (the last added) and hits the back of the
+    side's next voxel. The top and that voxel form the convex edge, not
+    the last added: the top's ray goes on over the edge, the other's is
+    stopped."""
+    vox = line(dict(x=0.5, y=0.8, n=(0.2, 1, 0)),   # the top, sending along +x
+               dict(x=1.1, y=0.1, n=PLUS),          # joins the line after it, far below the edge
+               dict(x=1.4, y=0.3, n=PLUS),          # the side below the edge, turning its back
+               dict(x=4.5, n=MINUS))
+    s = seen(vox)
+    assert s[0] == 3 and s[1] == -1
+
+
+def test_convex_edge_with_the_voxel_last_added():
+    """A voxel waiting level with a box's top, far behind the box: the top
+    near its edge joins the line, and the side's voxel below the edge turns
+    its back. The waiting voxel and the side form no edge (it is a cell
+    behind it), but the top, the voxel last added, does: the ray passes
+    over the edge."""
+    vox = line(dict(x=0.5, y=0.95, n=PLUS),
+               dict(x=1.2, y=0.8, n=(0.2, 1, 0)),   # the top near its edge: joins the line last
+               dict(x=1.4, y=0.3, n=PLUS),          # the side, turning its back
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 3
+
+
+def test_a_surface_along_the_line_hides_what_lies_on_its_other_side():
+    """The line, a cell thick, runs along a floor (its voxel parallel to the
+    ray, at height 0.5 in cell 2): a waiting voxel above the floor does not
+    see a voxel below it further on (the lid of a box looking down its wall
+    does not see the floor outside)."""
+    vox = line(dict(x=0.5, y=0.8, n=PLUS), dict(x=2.5, y=0.5, n=(0, 1, 0)), dict(x=4.5, y=0.2, n=MINUS))
+    assert seen(vox)[0] == -1
+    assert seen(line(dict(x=0.5, y=0.8, n=PLUS), dict(x=4.5, y=0.2, n=MINUS)))[0] == 1
+
+
+def test_a_wall_standing_in_the_cell_separates_a_floor_beyond_it():
+    """y, a floor piece tilted to face the ray a little, lies in the cell
+    of a leaning wall but on its far side, and comes first in the cell
+    along the line. The segment from the waiting voxel to y crosses the
+    wall's plane inside the cell: the waiting voxel does not see y, keeps
+    waiting (its ray meets the wall only beyond y) and gathers the wall."""
+    vox = line(dict(x=0.5, y=0.8, n=PLUS),
+               dict(x=2.45, y=0.05, n=(-0.2, 1, 0)),   # the floor beyond the wall
+               dict(x=2.5, y=0.5, n=(-1, 0.5, 0)),     # the wall, leaning towards the ray
+               dict(x=4.5, n=MINUS))
+    assert seen(vox)[0] == 2
+
+
+def test_a_back_beyond_a_cutting_surface_is_out_of_reach():
+    """The waiting voxel was cut by another surface's plane; the next voxel
+    on the line turns its back, on that plane's other side, and the ray
+    moves away from the plane: the back is out of the ray's reach, the
+    waiting voxel goes on to the voxel beyond, on its own side."""
+    vox = line(dict(x=0.5, y=0.9, n=PLUS, cut=((1, 4, 0), 0.85, 1)),
+               dict(x=2.5, y=0.1, n=PLUS),    # across the plane, turning its back
+               dict(x=4.5, y=0.5, n=MINUS))
+    assert seen(vox)[0] == 2

@@ -21,7 +21,7 @@ from baker.bake import bake_config, bake_scene, read_bake, render_bake, write_ba
 from baker.scene import load_scene
 from baker.scene.model import make_camera
 from baker.scene.textures import srgb_to_linear
-from scenes.generate import GltfBuilder, quad, thin_wall, two_rooms
+from scenes.generate import thin_wall, two_rooms
 
 WEB = os.path.join(os.path.dirname(os.path.abspath(__file__)), "web")
 CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
@@ -76,7 +76,7 @@ def bakes(tmp_path_factory):
                                                              np.radians(50)),))
     paths = {}
     for name, scene in scenes.items():
-        bake, *_ = bake_scene(scene, bake_config("preview", resolution=24, photons=100_000))
+        bake = bake_scene(scene, bake_config("preview", resolution=24, photons=100_000)).bake
         paths[name] = out / f"{name}.glb"
         write_bake(paths[name], bake)
     return paths

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from baker.cli import run
+from baker.startup import run
 from baker.cli_args import EXPOSURE, IMAGE_SIDE, OneLineParser, integer
 from baker.errors import VoxgiError
 
@@ -31,7 +31,8 @@ def _read(path):
 
 
 def _camera(bake, which):
-    return bake.scene.camera(which)
+    from baker.scene import camera_for
+    return camera_for(bake.scene, which)
 
 
 def cmd_walk(args):

@@ -40,8 +40,11 @@ def _with_defines(src: str, defines) -> str:
 
 def build_program(ctx, vert: str, frag: str, defines=None):
     """Compiles one shader pair from the shipped `shaders` package, with
-    `defines` {NAME: int} put after the #version line of both."""
+    `defines` {NAME: int} put after the #version line of both, with the
+    light kinds' codes (KIND_AREA, ...: baker.scene.model.LightKind)."""
     import shaders
+    from baker.scene.model import LightKind
+    defines = {**LightKind.defines(), **(defines or {})}
     try:
         return ctx.program(vertex_shader=_with_defines(shaders.source(vert), defines),
                            fragment_shader=_with_defines(shaders.source(frag), defines))

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from baker.scene.model import LightKind
+
 from .camera import look_at, perspective, view_of
 
 FACES = [((1, 0, 0), (0, -1, 0)), ((-1, 0, 0), (0, -1, 0)), ((0, 1, 0), (0, 0, 1)), ((0, -1, 0), (0, 0, -1)),
@@ -44,7 +46,9 @@ class Preview:
         self.s_vao = ctx.vertex_array(self.s_prog, [(renderer.vbo, "3f 16x", "in_position")])
         self.p_vao = ctx.vertex_array(self.p_prog, [])
         w, h = width, height
+        # the G-buffer, in gbuffer.frag's output order
         self.gtex = [ctx.texture((w, h), 4, dtype="f4") for _ in range(4)]
+        self.g_position, self.g_normal, self.g_albedo, self.g_emission = self.gtex
         for t in self.gtex:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.gdepth = ctx.depth_renderbuffer((w, h))
@@ -92,10 +96,10 @@ class Preview:
         self.used = self.frames = 0
         self.pfbo.use()
         self.pfbo.clear(0.0, 0.0, 0.0, 0.0)
-        kinds = {"directional": 1, "point": 2, "spot": 3}
         for light in self.lights:
-            k = kinds[light.kind]
-            towards = -np.asarray(light.direction, float) if k == 1 else np.asarray(light.direction, float)
+            k = LightKind.of(light.kind)
+            towards = -np.asarray(light.direction, float) if k == LightKind.DIRECTIONAL else \
+                np.asarray(light.direction, float)
             self._add(self.pfbo, k, np.asarray(light.position, float), towards,
                       np.asarray(light.intensity, float), 0.0,
                       (math.cos(light.inner_cone), math.cos(light.outer_cone)))
@@ -128,7 +132,7 @@ class Preview:
         import moderngl
         ctx, s = self.ctx, self.shadow_size
         self.sfbo.use()
-        directional = kind == 1
+        directional = kind == LightKind.DIRECTIONAL
         self.sfbo.clear(*((-1e30,) * 4 if directional else (1e30,) * 4), depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
@@ -145,8 +149,8 @@ class Preview:
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         p = self.p_prog
-        self.gtex[0].use(0)
-        self.gtex[1].use(1)
+        self.g_position.use(0)
+        self.g_normal.use(1)
         self.shadow.use(2)
         p["u_position"].value, p["u_normal"].value, p["u_shadow"].value = 0, 1, 2
         p["u_kind"].value = int(kind)
@@ -180,8 +184,8 @@ class Preview:
         draws."""
         w, h = self.size
         acc = np.frombuffer(self.accum.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
-        alb = np.frombuffer(self.gtex[2].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
-        em = np.frombuffer(self.gtex[3].read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        alb = np.frombuffer(self.g_albedo.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
+        em = np.frombuffer(self.g_emission.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
         pun = np.frombuffer(self.punct.read(), np.float32).reshape(h, w, 4)[::-1, :, :3]
         draws = max(1, self.used)
         return np.ascontiguousarray(em + alb / math.pi * (pun + acc / draws), np.float32)
@@ -197,8 +201,8 @@ class Preview:
         ctx.viewport = (0, 0, width, height)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
         self.accum.use(0)
-        self.gtex[2].use(1)
-        self.gtex[3].use(2)
+        self.g_albedo.use(1)
+        self.g_emission.use(2)
         self.punct.use(3)
         p["u_accum"].value, p["u_albedo"].value, p["u_emission"].value, p["u_punctual"].value = 0, 1, 2, 3
         p["u_draws"].value = float(max(1, self.used))

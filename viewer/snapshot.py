@@ -3,7 +3,7 @@
 
 The frame is drawn at `samples` times the size on each axis into a float
 framebuffer and box-filtered down: the same 4 x 4 points per pixel as the
-CPU render of a bake (baker.bake.shade), so the two compare pixel by
+CPU render of a bake (baker.render.lightmap_view), so the two compare pixel by
 pixel.
 """
 from __future__ import annotations
@@ -44,13 +44,14 @@ def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=
     bake's first), on a standalone EGL context (or `ctx`). mode 'preview':
     the progressive instant radiosity after `frames` frames of `per_frame`
     VPLs, at the pixels' centres (as the CPU's)."""
+    from baker.scene import camera_for
     from .context import headless_context
     from .renderer import Renderer
     own = ctx is None
     ctx = ctx or headless_context()
     try:
         r = Renderer(ctx, bake)
-        cam = camera if hasattr(camera, "forward") else bake.scene.camera(camera)
+        cam = camera if hasattr(camera, "forward") else camera_for(bake.scene, camera)
         if mode == "preview":
             from .preview import Preview
             pv = Preview(ctx, r, cam, width, height, per_frame=per_frame)

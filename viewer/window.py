@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from baker.errors import GLError, VoxgiError
+from baker.scene import camera_for
 
 from .camera import Controls, FlyCamera
 from .renderer import MODES
@@ -271,7 +272,7 @@ class Walkthrough:
             ctx = moderngl.create_context()
             from .renderer import Renderer
             renderer = Renderer(ctx, self.bake)
-            cam0 = self.start_camera if self.start_camera is not None else self.bake.scene.camera(None)
+            cam0 = self.start_camera if self.start_camera is not None else camera_for(self.bake.scene, None)
             lo, hi = self.bake.scene.bounds()
             camera = FlyCamera.from_camera(cam0, speed=0.15 * float(np.linalg.norm(hi - lo)))
             if self.exposure_ev is None:

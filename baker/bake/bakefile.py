@@ -268,14 +268,19 @@ def _read_vpls(blob, doc, entry):
     rows = rows.astype(np.float64)
     if not np.isfinite(rows).all():
         raise ValueError("non-finite values")
-    field = {name: rows[:, i] for i, name in enumerate(VPL_FIELDS)}
+    col = {name: i for i, name in enumerate(VPL_FIELDS)}
+
+    def span(first, last):
+        return rows[:, col[first]:col[last] + 1].copy()
+    field = {name: rows[:, i] for name, i in col.items()}
     kind = field["kind"]
     if (kind != np.rint(kind)).any() or kind.min(initial=0) < 0 or kind.max(initial=0) > 127:
         raise ValueError("VPL kinds out of range")
-    if min(field["area"].min(initial=0), rows[:, 6:9].min(initial=0)) < 0:
+    power = span("r", "b")
+    if min(field["area"].min(initial=0), power.min(initial=0)) < 0:
         raise ValueError("negative VPL power or area")
-    return VPLs(kind.astype(np.int8), rows[:, 0:3].copy(), rows[:, 3:6].copy(), rows[:, 6:9].copy(),
-                field["area"].copy(), field["indirect"] > 0.5)
+    return VPLs(kind.astype(np.int8), span("px", "pz"), span("nx", "nz"), power, field["area"].copy(),
+                field["indirect"] > 0.5)
 
 
 MAX_PAGE = 16384  # texels on a page's side: far above what the packer writes (512)

@@ -6,9 +6,8 @@ tables passes each of their arrays field by field (the BVH's five arrays
 are about 45 machine words, the surface tables about 150) and counts a
 reference to each array up at entry and down at exit: atomic operations on
 memory every thread shares. Where such calls happen several times per path
-vertex, that costs more than the work: the path tracer spent over half
-its time on it (bench/pathtrace.py gained 2x samples per second without
-it). Two remedies, for the few loops where it matters:
+vertex, that costs more than the work (bench/pathtrace.py shows it). Two
+remedies, for the few loops where it matters:
 
 - `inlined(kernel)`: a copy of the kernel that numba inlines at each call
   site (its IR, before LLVM), so nothing is passed and the counts cancel.
@@ -21,7 +20,7 @@ it). Two remedies, for the few loops where it matters:
   owners alive for the whole call, so the views never outlive the data.
   Never return a borrowed view or store it where it outlives the call.
 """
-from numba import njit, types
+from numba import config, njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
@@ -63,3 +62,8 @@ def borrowed(typingctx, x):
     def codegen(context, builder, signature, args):
         return _borrow(context, builder, signature.args[0], args[0])
     return x(x), codegen
+
+
+if config.DISABLE_JIT:  # kernels run as Python (NUMBA_DISABLE_JIT=1): the array itself
+    def borrowed(x):  # noqa: F811
+        return x

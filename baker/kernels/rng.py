@@ -21,9 +21,23 @@ def mix64(x):
 
 
 @njit(cache=True, inline="always")
+def keyed(seed, index):
+    """The 64-bit hash of (seed, index) that every random stream starts
+    from (rand01, the Sobol scrambles, the light tree's representatives,
+    the texels' inside-test directions)."""
+    return mix64(np.uint64(seed) * _C1 + np.uint64(index))
+
+
+def seed_unit(seed) -> float:
+    """A number in [0, 1) from the seed alone, in plain Python (the light
+    tree's root representative, drawn outside the kernels)."""
+    return ((int(seed) * 0x9E3779B97F4A7C15) % (1 << 64) >> 11) / float(1 << 53)
+
+
+@njit(cache=True, inline="always")
 def rand01(seed, index, dim):
     """Uniform double in [0, 1) for (seed, index, dim); all three int-like."""
-    h = mix64(np.uint64(seed) * _C1 + np.uint64(index))
+    h = keyed(seed, index)
     h = mix64(h ^ (np.uint64(dim) * _C2 + _C1))
     return float(h >> np.uint64(11)) * _INV53
 

@@ -112,10 +112,9 @@ def _slab_slot(w, node, s, ox, oy, oz, ix, iy, iz, tmin, tmax):
 def _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, tmax):
     """Bit s set where slot s of wide node `node` holds a child whose box
     the ray meets within (tmin, tmax): the WIDTH slab tests in one loop
-    with no branch (bench/rays.py: 1.3-1.6x the 4-wide tree's branching
-    loop on the walkthrough). The slab test is written out again here, not
-    shared with _slab_slot: a shared helper returning the (entry, exit)
-    pair cost 30% of the coherent shadow rays' speed (measured)."""
+    with no branch (faster than a branching loop: bench/rays.py). The slab
+    test is written out again here, not shared with _slab_slot: a shared
+    helper returning the (entry, exit) pair slowed coherent shadow rays."""
     m = 0
     for s in range(WIDTH):
         t0 = (w[node, WIDE_LO + s] - ox) * ix

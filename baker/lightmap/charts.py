@@ -39,7 +39,7 @@ class Charts:
     (nc,) bool: the triangle is no wider than SUBTEXEL_SPAN texels of the
     size asked for (a scan's or a dense mesh's triangle), so its light is
     sampled at its three corners and interpolated over its map, not texel
-    by texel (lightmap.corner_values): at that density its own texels
+    by texel (lightmap/values.py: corner_values): at that density its own texels
     would sample it at no more than about SUBTEXEL_SPAN^2 / 2 = 2 points."""
     tri: np.ndarray
     back: np.ndarray
@@ -50,8 +50,40 @@ class Charts:
     corners2d: np.ndarray
     subtexel: np.ndarray
 
+    per_triangle = True  # the Layout protocol (lightmap/values.py): maps follow triangles
+
     def __len__(self):
         return len(self.tri)
+
+    @property
+    def chart_count(self) -> int:
+        return len(self.tri)
+
+    @property
+    def min_texel(self) -> float:
+        return float(np.min(self.texel))
+
+    def subtexel_charts(self) -> np.ndarray:
+        """The charts shaded at their corners (lightmap/values.py: corner_values)."""
+        return np.nonzero(self.subtexel)[0]
+
+    def sample(self, corners, inset=0.0, bvh=None, lift=0.0):
+        """The Layout protocol's texel points (lightmap/values.py: sample_points)."""
+        from .texels import onto_coplanar, texel_points
+        off = self.offsets
+        size = self.size.astype(np.int64)
+        point, covered = texel_points(corners, self.tri, self.corners2d, self.size, off, float(inset))
+        if bvh is not None:
+            onto_coplanar(bvh.arrays, corners, self.tri, self.back, self.axis, self.origin, self.texel,
+                          self.size, off, point, covered, float(lift))
+        per = np.repeat(np.arange(len(self), dtype=np.int32), size ** 2)
+        return off, size, point, covered, self.tri[per].astype(np.int32), self.back[per], per, self.corners2d
+
+    def pages(self, texels, emits):
+        """The Layout protocol's atlas: maps deduplicated and packed
+        (atlas.build_atlas)."""
+        from .atlas import build_atlas
+        return build_atlas(texels.values, texels.filled, self, emits[self.tri])
 
     @property
     def texel_count(self) -> int:

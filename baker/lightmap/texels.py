@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.rng import mix64
+from ..kernels.rng import keyed
 from ..kernels.sampling import frame
 from ..kernels.traverse import any_hit, closest_hit, hit_normal
 
@@ -172,7 +172,7 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
                 continue
             nx, ny, nz = side_normal(corners, t, texel_back[k])
             tx, bx = frame(nx, ny, nz)
-            h = mix64(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(k))
+            h = keyed(seed, k)
             r1 = float(h >> np.uint64(40)) / 16777216.0
             r2 = float((h >> np.uint64(16)) & np.uint64(0xFFFFFF)) / 16777216.0
             ox = point[k, 0] + offset * nx

@@ -51,12 +51,13 @@ def _on_side(v, px, py, pz, cell, cut_plane, cut_sign, origin, h):
 
 
 @njit(cache=True, parallel=True)
-def reconstruct(bvh, corners, texel_tri, texel_back, point, covered, irradiance, vkey, vcell, vcentroid, vnormal,
-                varea, cut_plane, cut_sign, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
-                origin, h, dims, offset):
+def reconstruct(bvh, corners, texel_tri, texel_back, point, covered, irradiance, voxels, pieces, offset):
     """H (N, 3) float64 at every covered texel (sampling triangle
     texel_tri[k], its back if texel_back[k]); found (N,) bool (False: no
-    voxel holds the point's side, the value is 0)."""
+    voxel holds the point's side, the value is 0). voxels: VoxelArrays,
+    pieces: PieceLookup (Voxels.arrays(), .lookup())."""
+    vkey, vcell, vcentroid, vnormal, varea = voxels.key, voxels.cell, voxels.centroid, voxels.normal, voxels.area
+    cut_plane, cut_sign, origin, h, dims = voxels.cut_plane, voxels.cut_sign, pieces.origin, pieces.h, pieces.dims
     total = point.shape[0]
     out = np.zeros((total, 3))
     found = np.zeros(total, np.bool_)
@@ -71,8 +72,7 @@ def reconstruct(bvh, corners, texel_tri, texel_back, point, covered, irradiance,
             back = texel_back[k]
             nx, ny, nz = side_normal(corners, t, back)
             px, py, pz = point[k, 0], point[k, 1], point[k, 2]
-            home = voxel_of_hit(t, back, px, py, pz, piece_key, piece_voxel, piece_plane, piece_sign, side_start,
-                                back_side, origin, h, dims)
+            home = voxel_of_hit(t, back, px, py, pz, pieces)
             if home < 0:
                 continue
             found[k] = True

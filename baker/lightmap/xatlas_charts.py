@@ -38,8 +38,41 @@ class XatlasLayout:
     charts: int
     utilization: float
 
+    per_triangle = False  # the Layout protocol (lightmap/values.py): a page's neighbour may be another chart
+
     def __len__(self):
         return len(self.tri)
+
+    @property
+    def chart_count(self) -> int:
+        return int(self.charts)
+
+    @property
+    def min_texel(self) -> float:
+        return float(self.texel)
+
+    def subtexel_charts(self) -> np.ndarray:
+        return np.zeros(0, np.int64)  # texels follow the surface's area, not its triangles
+
+    def sample(self, corners, inset=0.0, bvh=None, lift=0.0):
+        """The Layout protocol's texel points (lightmap/values.py: sample_points)."""
+        point, covered, tri, back, face = xatlas_texels(self, corners, inset)
+        size = np.full(self.n_pages, PAGE, np.int64)
+        off = np.arange(self.n_pages + 1, dtype=np.int64) * PAGE * PAGE
+        return off, size, point, covered, tri, back, face, self.uv
+
+    def pages(self, texels, emits):
+        """The Layout protocol's atlas: the pages as they are (charts are
+        not deduplicated); each page's scale from its non-emitter texels."""
+        from .atlas import Lightmaps, to_stored
+        n = self.n_pages
+        pages = to_stored(texels.values).astype(np.float32).reshape(n, PAGE, PAGE, 3)
+        lit = (texels.texel_tri >= 0) & ~emits[np.maximum(texels.texel_tri, 0)]
+        scale = np.array([float(pages[p].reshape(-1, 3)[lit.reshape(n, -1)[p]].max(initial=0.0)) or
+                          float(pages[p].max()) for p in range(n)], np.float32)
+        counts = {"maps": int(self.charts), "unique": int(self.charts), "constant": 0,
+                  "texels": int(n * PAGE * PAGE), "texels_stored": int(texels.covered.sum()), "pages": int(n)}
+        return Lightmaps(pages, self.page.astype(np.int32), (self.uv / PAGE).astype(np.float32), scale, counts)
 
 
 def xatlas_layout(vertices, triangles, two_sided, texel_size) -> XatlasLayout:

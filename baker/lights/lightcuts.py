@@ -18,14 +18,22 @@ speed-up's denominator).
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
+from ..kernels.colour import LUM_B, LUM_G, LUM_R
 from ..kernels.traverse import any_hit
 from ..scene.surfaces import punctual_irradiance
 from .vpl import KIND_DIRECTIONAL
+
+# The kernels' view of a light tree (lights/__init__.py: tree_arrays packs it, one 128-byte record per node)
+# and of its VPLs; patch: the tree's largest VPL patch under each node (node_patches), a VPL's patch area (0:
+# none, the point form throughout).
+TreeArrays = namedtuple("TreeArrays", ["lo", "hi", "axis", "cos", "power", "lum", "rep", "right", "kind", "patch"])
+VPLArrays = namedtuple("VPLArrays", ["kind", "position", "normal", "area", "power", "patch"])
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of an area VPL (it lies on a surface)
 NEAR, FAR = 2.0, 3.0  # a voxel's VPL nearer than NEAR x sqrt(A) takes its patch's form factor; by FAR, the point form
@@ -50,7 +58,7 @@ def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
 
 
 @njit(cache=True)
-def patch_g(position, normal, patch, v, px, py, pz, nx, ny, nz):
+def patch_g(vpls, v, px, py, pz, nx, ny, nz):
     """The near field of VPL v at p: the form factor from p to its patch
     over the patch's area, F / A (irradiance = power x F / A = B F). The
     patch is the square of area A centred on v's position in its plane
@@ -58,7 +66,7 @@ def patch_g(position, normal, patch, v, px, py, pz, nx, ny, nz):
     clipped to p's upper half-space; F by Lambert's formula,
     |sum over its edges of angle x cos| / (2 pi): exact for any distance,
     B at a point the patch covers."""
-    mx, my, mz = normal[v, 0], normal[v, 1], normal[v, 2]
+    mx, my, mz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
     if abs(mx) >= abs(my) and abs(mx) >= abs(mz):
         ex, ey, ez = 0.0, 1.0, 0.0
     elif abs(my) >= abs(mz):
@@ -70,8 +78,8 @@ def patch_g(position, normal, patch, v, px, py, pz, nx, ny, nz):
     tl = math.sqrt(tx * tx + ty * ty + tz * tz)
     tx, ty, tz = tx / tl, ty / tl, tz / tl
     bx, by, bz = my * tz - mz * ty, mz * tx - mx * tz, mx * ty - my * tx
-    half = 0.5 * math.sqrt(patch[v])
-    cx, cy, cz = position[v, 0] - px, position[v, 1] - py, position[v, 2] - pz
+    half = 0.5 * math.sqrt(vpls.patch[v])
+    cx, cy, cz = vpls.position[v, 0] - px, vpls.position[v, 1] - py, vpls.position[v, 2] - pz
     acc = 0.0
     count = 0
     fx = fy = fz = 0.0   # the clipped polygon's first vertex, and the last one emitted
@@ -109,20 +117,20 @@ def patch_g(position, normal, patch, v, px, py, pz, nx, ny, nz):
     if count < 3:
         return 0.0
     acc += _edge_term(lx, ly, lz, fx, fy, fz, nx, ny, nz)
-    return abs(acc) / (2.0 * math.pi * patch[v])
+    return abs(acc) / (2.0 * math.pi * vpls.patch[v])
 
 
 @njit(cache=True, inline="always")
-def vpl_g(bvh, stack, kind, position, normal, area, patch, v, px, py, pz, nx, ny, nz, offset, shadows):
+def vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, shadows):
     """The geometric factor of VPL v at p (visibility included when
-    `shadows`): irradiance = power(v) x g. A VPL with a patch (patch[v] >
+    `shadows`): irradiance = power(v) x g. A VPL with a patch (vpls.patch[v] >
     0: a voxel's area) nearer than FAR x sqrt(A) takes its patch's exact
     form factor (patch_g), blended into the bounded point form from NEAR
     to FAR x sqrt(A): at a concave edge the point form of the next wall's
     voxels reads 20-45% low a quarter to half a voxel from it, the patches
     0.5-1% (tests/test_lights.py)."""
-    if kind[v] == KIND_DIRECTIONAL:
-        dx, dy, dz = normal[v, 0], normal[v, 1], normal[v, 2]
+    if vpls.kind[v] == KIND_DIRECTIONAL:
+        dx, dy, dz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
         cp = nx * dx + ny * dy + nz * dz
         if cp <= COS_MIN:
             return 0.0
@@ -130,45 +138,45 @@ def vpl_g(bvh, stack, kind, position, normal, area, patch, v, px, py, pz, nx, ny
                                np.inf):
             return 0.0
         return cp
-    dx, dy, dz = position[v, 0] - px, position[v, 1] - py, position[v, 2] - pz
+    dx, dy, dz = vpls.position[v, 0] - px, vpls.position[v, 1] - py, vpls.position[v, 2] - pz
     r2 = dx * dx + dy * dy + dz * dz
     if r2 <= 0.0:
         return 0.0
     r = math.sqrt(r2)
     dx, dy, dz = dx / r, dy / r, dz / r
     cp = nx * dx + ny * dy + nz * dz
-    cl = -(normal[v, 0] * dx + normal[v, 1] * dy + normal[v, 2] * dz)
+    cl = -(vpls.normal[v, 0] * dx + vpls.normal[v, 1] * dy + vpls.normal[v, 2] * dz)
     if cp <= COS_MIN or cl <= COS_MIN:
         return 0.0
     if shadows:
         ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
-        ex, ey, ez = position[v, 0] - ox, position[v, 1] - oy, position[v, 2] - oz
+        ex, ey, ez = vpls.position[v, 0] - ox, vpls.position[v, 1] - oy, vpls.position[v, 2] - oz
         d = math.sqrt(ex * ex + ey * ey + ez * ez)
         if any_hit(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d * (1.0 - SHADOW_EPS)):
             return 0.0
-    g = cl * cp / (math.pi * r2 + area[v])
-    if r2 < FAR * FAR * patch[v]:   # the near field: over the VPL's patch, blended into the point form
-        w = min(1.0, (FAR - r / math.sqrt(patch[v])) / (FAR - NEAR))
-        g = w * patch_g(position, normal, patch, v, px, py, pz, nx, ny, nz) + (1.0 - w) * g
+    g = cl * cp / (math.pi * r2 + vpls.area[v])
+    if r2 < FAR * FAR * vpls.patch[v]:   # the near field: over the VPL's patch, blended into the point form
+        w = min(1.0, (FAR - r / math.sqrt(vpls.patch[v])) / (FAR - NEAR))
+        g = w * patch_g(vpls, v, px, py, pz, nx, ny, nz) + (1.0 - w) * g
     return g
 
 
 @njit(cache=True, inline="always")
-def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node, px, py, pz, nx, ny, nz, node_patch):
+def node_bound(tree, node, px, py, pz, nx, ny, nz):
     """Upper bound of the luminance the node's VPLs give p (no visibility).
-    node_patch: the largest patch area (vpl_g's near field) under each
+    tree.patch: the largest patch area (vpl_g's near field) under each
     node; within FAR x sqrt of it of the box a patch may lie nearer to p,
     and higher above p's plane, than its VPL's position: there the bound
     is lum cos_p / (pi (d - R)^2), R the patch's half diagonal, cos_p from
     the box's height above p's plane plus R x the sine of the largest
     angle between p's normal and the node's normals."""
-    lum = tree_lum[node]
+    lum = tree.lum[node]
     if lum <= 0.0:
         return 0.0
-    if tree_kind[node] == KIND_DIRECTIONAL:
+    if tree.kind[node] == KIND_DIRECTIONAL:
         # cos_p over the cone of directions: cos(max(0, angle(n, axis) - half angle))
-        d = min(1.0, max(-1.0, nx * tree_axis[node, 0] + ny * tree_axis[node, 1] + nz * tree_axis[node, 2]))
-        c = tree_cos[node]
+        d = min(1.0, max(-1.0, nx * tree.axis[node, 0] + ny * tree.axis[node, 1] + nz * tree.axis[node, 2]))
+        c = tree.cos[node]
         if c <= -1.0:
             return lum
         a = math.acos(d) - math.acos(min(1.0, max(-1.0, c)))
@@ -177,7 +185,7 @@ def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node,
     d2 = 0.0
     for c in range(3):
         q = (px, py, pz)[c]
-        lo, hi = tree_lo[node, c], tree_hi[node, c]
+        lo, hi = tree.lo[node, c], tree.hi[node, c]
         e = lo - q if q < lo else (q - hi if q > hi else 0.0)
         d2 += e * e
     if d2 <= 0.0:
@@ -188,17 +196,17 @@ def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node,
     for c in range(3):
         q = (px, py, pz)[c]
         nc = (nx, ny, nz)[c]
-        zmax += nc * ((tree_hi[node, c] if nc > 0.0 else tree_lo[node, c]) - q)
-    na = node_patch[node]
+        zmax += nc * ((tree.hi[node, c] if nc > 0.0 else tree.lo[node, c]) - q)
+    na = tree.patch[node]
     if na > 0.0 and d2 < FAR * FAR * na:
         rr = math.sqrt(0.5 * na)
         d = math.sqrt(d2) - rr
         if d <= 0.0:
             return np.inf
         sn = 1.0
-        cc = tree_cos[node]
+        cc = tree.cos[node]
         if cc > -1.0:   # sin(angle(n, axis) + half angle), or 1 from a right angle on
-            ca = min(1.0, max(-1.0, nx * tree_axis[node, 0] + ny * tree_axis[node, 1] + nz * tree_axis[node, 2]))
+            ca = min(1.0, max(-1.0, nx * tree.axis[node, 0] + ny * tree.axis[node, 1] + nz * tree.axis[node, 2]))
             cc = min(1.0, cc)
             sa, sc = math.sqrt(1.0 - ca * ca), math.sqrt(1.0 - cc * cc)
             if ca * cc - sa * sc > 0.0:
@@ -214,20 +222,20 @@ def node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, node,
     # the cone's axis and the direction from the box's centre to p, r the half angle the box's bounding sphere
     # subtends, c the cone's half angle; by the angle sum rules (no inverse trigonometry)
     cos_l = 1.0
-    cc = tree_cos[node]
+    cc = tree.cos[node]
     if cc > -1.0:
-        mx = 0.5 * (tree_lo[node, 0] + tree_hi[node, 0])
-        my = 0.5 * (tree_lo[node, 1] + tree_hi[node, 1])
-        mz = 0.5 * (tree_lo[node, 2] + tree_hi[node, 2])
+        mx = 0.5 * (tree.lo[node, 0] + tree.hi[node, 0])
+        my = 0.5 * (tree.lo[node, 1] + tree.hi[node, 1])
+        mz = 0.5 * (tree.lo[node, 2] + tree.hi[node, 2])
         wx, wy, wz = px - mx, py - my, pz - mz
         dist2 = wx * wx + wy * wy + wz * wz
-        hx = 0.5 * (tree_hi[node, 0] - tree_lo[node, 0])
-        hy = 0.5 * (tree_hi[node, 1] - tree_lo[node, 1])
-        hz = 0.5 * (tree_hi[node, 2] - tree_lo[node, 2])
+        hx = 0.5 * (tree.hi[node, 0] - tree.lo[node, 0])
+        hy = 0.5 * (tree.hi[node, 1] - tree.lo[node, 1])
+        hz = 0.5 * (tree.hi[node, 2] - tree.lo[node, 2])
         rad2 = hx * hx + hy * hy + hz * hz
         if dist2 > rad2:
             dist = math.sqrt(dist2)
-            cw = min(1.0, max(-1.0, (wx * tree_axis[node, 0] + wy * tree_axis[node, 1] + wz * tree_axis[node, 2])
+            cw = min(1.0, max(-1.0, (wx * tree.axis[node, 0] + wy * tree.axis[node, 1] + wz * tree.axis[node, 2])
                               / dist))
             sw = math.sqrt(max(0.0, 1.0 - cw * cw))
             sr = math.sqrt(rad2 / dist2)
@@ -288,77 +296,73 @@ def scratch(cap):
 
 
 @njit(cache=True)
-def lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree_lum, tree_rep, tree_right,
-             tree_kind, kind, position, normal, area, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n,
-             heap_g, patch, node_patch):
+def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n, heap_g):
     """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
     shadow rays cast. heap_b, heap_n, heap_g: scratch of cap + 2 entries
     (the cut's refinable nodes with their bound and representative's g)."""
     root = 0
-    g = vpl_g(bvh, stack, kind, position, normal, area, patch, tree_rep[root], px, py, pz, nx, ny, nz, offset, True)
+    g = vpl_g(bvh, stack, vpls, tree.rep[root], px, py, pz, nx, ny, nz, offset, True)
     rays = 1
-    e0 = tree_power[root, 0] * g
-    e1 = tree_power[root, 1] * g
-    e2 = tree_power[root, 2] * g
+    e0 = tree.power[root, 0] * g
+    e1 = tree.power[root, 1] * g
+    e2 = tree.power[root, 2] * g
     size = 0
     cut = 1
     f0 = f1 = f2 = 0.0  # the cut's nodes that are final (leaves, nodes that cannot light p), summed once
     b = 0.0
-    if tree_right[root] >= 0:
-        b = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, root, px, py, pz, nx, ny, nz,
-                       node_patch)
+    if tree.right[root] >= 0:
+        b = node_bound(tree, root, px, py, pz, nx, ny, nz)
     if b > 0.0:
         size = _push(heap_b, heap_n, heap_g, size, b, root, g)
     else:
         f0, f1, f2 = e0, e1, e2
     while size > 0:
-        est = 0.2126 * e0 + 0.7152 * e1 + 0.0722 * e2
+        est = LUM_R * e0 + LUM_G * e1 + LUM_B * e2
         if heap_b[0] <= epsilon * est or cut >= cap:
             break
         node, g, size = _pop(heap_b, heap_n, heap_g, size)
-        e0 -= tree_power[node, 0] * g
-        e1 -= tree_power[node, 1] * g
-        e2 -= tree_power[node, 2] * g
+        e0 -= tree.power[node, 0] * g
+        e1 -= tree.power[node, 1] * g
+        e2 -= tree.power[node, 2] * g
         cut -= 1
-        for child in (node + 1, tree_right[node]):
-            if tree_rep[child] == tree_rep[node]:
+        for child in (node + 1, tree.right[node]):
+            if tree.rep[child] == tree.rep[node]:
                 gc = g
             else:
-                gc = vpl_g(bvh, stack, kind, position, normal, area, patch, tree_rep[child], px, py, pz, nx, ny, nz,
+                gc = vpl_g(bvh, stack, vpls, tree.rep[child], px, py, pz, nx, ny, nz,
                            offset, True)
                 rays += 1
-            e0 += tree_power[child, 0] * gc
-            e1 += tree_power[child, 1] * gc
-            e2 += tree_power[child, 2] * gc
+            e0 += tree.power[child, 0] * gc
+            e1 += tree.power[child, 1] * gc
+            e2 += tree.power[child, 2] * gc
             cut += 1
             bc = 0.0
-            if tree_right[child] >= 0:
-                bc = node_bound(tree_lo, tree_hi, tree_axis, tree_cos, tree_lum, tree_kind, child, px, py, pz, nx,
-                                ny, nz, node_patch)
+            if tree.right[child] >= 0:
+                bc = node_bound(tree, child, px, py, pz, nx, ny, nz)
             if bc > 0.0:
                 size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
             else:
-                f0 += tree_power[child, 0] * gc
-                f1 += tree_power[child, 1] * gc
-                f2 += tree_power[child, 2] * gc
+                f0 += tree.power[child, 0] * gc
+                f1 += tree.power[child, 1] * gc
+                f2 += tree.power[child, 2] * gc
     # the result summed afresh over the cut (the running estimate above subtracts: rounding would leave 1e-31
     # where every term is 0, and a dark room must stay exactly black)
     for i in range(size):
-        f0 += tree_power[heap_n[i], 0] * heap_g[i]
-        f1 += tree_power[heap_n[i], 1] * heap_g[i]
-        f2 += tree_power[heap_n[i], 2] * heap_g[i]
+        f0 += tree.power[heap_n[i], 0] * heap_g[i]
+        f1 += tree.power[heap_n[i], 1] * heap_g[i]
+        f2 += tree.power[heap_n[i], 2] * heap_g[i]
     return f0, f1, f2, cut, rays
 
 
 @njit(cache=True)
-def brute_force(bvh, stack, kind, position, normal, area, patch, power, px, py, pz, nx, ny, nz, offset):
+def brute_force(bvh, stack, vpls, px, py, pz, nx, ny, nz, offset):
     """Irradiance (r, g, b) at p: every VPL, with visibility."""
     h0 = h1 = h2 = 0.0
-    for v in range(kind.shape[0]):
-        g = vpl_g(bvh, stack, kind, position, normal, area, patch, v, px, py, pz, nx, ny, nz, offset, True)
-        h0 += power[v, 0] * g
-        h1 += power[v, 1] * g
-        h2 += power[v, 2] * g
+    for v in range(vpls.kind.shape[0]):
+        g = vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, True)
+        h0 += vpls.power[v, 0] * g
+        h1 += vpls.power[v, 1] * g
+        h2 += vpls.power[v, 2] * g
     return h0, h1, h2
 
 
@@ -366,11 +370,10 @@ CHUNK = 64  # shading points per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, tree_lum, tree_rep, tree_right,
-                 tree_kind, kind, position, normal, area, power, points, normals, valid, offset, epsilon, cap,
-                 brute, patch, node_patch):
+def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon, cap, brute):
     """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
-    (where valid): lightcuts over the tree (brute: every VPL) plus the
+    (where valid): lightcuts over the tree (TreeArrays) of the VPLs
+    (VPLArrays; brute: every VPL) plus the
     scene's punctual lights, exact; cut size (N,) and shadow rays (N,)."""
     n = points.shape[0]
     out = np.zeros((n, 3))
@@ -388,17 +391,14 @@ def shade_points(bvh, surf, tree_lo, tree_hi, tree_axis, tree_cos, tree_power, t
             px, py, pz = points[k, 0], points[k, 1], points[k, 2]
             nx, ny, nz = normals[k, 0], normals[k, 1], normals[k, 2]
             h0 = h1 = h2 = 0.0
-            if kind.shape[0] > 0:
+            if vpls.kind.shape[0] > 0:
                 if brute:
-                    h0, h1, h2 = brute_force(bvh, stack, kind, position, normal, area, patch, power, px, py, pz, nx,
-                                             ny, nz, offset)
-                    cuts[k] = kind.shape[0]
-                    rays[k] = kind.shape[0]
+                    h0, h1, h2 = brute_force(bvh, stack, vpls, px, py, pz, nx, ny, nz, offset)
+                    cuts[k] = vpls.kind.shape[0]
+                    rays[k] = vpls.kind.shape[0]
                 else:
-                    h0, h1, h2, c, r = lightcut(bvh, stack, tree_lo, tree_hi, tree_axis, tree_cos, tree_power,
-                                                tree_lum, tree_rep, tree_right, tree_kind, kind, position, normal,
-                                                area, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n,
-                                                heap_g, patch, node_patch)
+                    h0, h1, h2, c, r = lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon,
+                                                cap, heap_b, heap_n, heap_g)
                     cuts[k] = c
                     rays[k] = r
             for i in range(n_lights):

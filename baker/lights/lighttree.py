@@ -22,10 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.rng import mix64
+from ..kernels.colour import LUMINANCE
+from ..kernels.rng import keyed, seed_unit
 from .vpl import KIND_AREA, KIND_DIRECTIONAL
 
-LUM = np.array([0.2126, 0.7152, 0.0722])
 BINS = 64
 NORMAL_WEIGHT = 0.125  # normals count as positions this fraction of the scene's diagonal apart
 
@@ -266,7 +266,7 @@ def _node_attributes(node, right, start, order, position, normal, power, lum_w, 
     axis[node, 0], axis[node, 1], axis[node, 2] = ax, ay, az
     cosv[node] = math.cos(half) if half < math.pi else -1.0
     # representative: the left's with probability lum_l / lum
-    h = mix64(np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(base + node))
+    h = keyed(seed, base + node)
     u = float(h >> np.uint64(11)) / 9007199254740992.0
     rep[node] = rep[l] if (lum[node] > 0.0 and u * lum[node] < lum[l]) or lum[node] <= 0.0 else rep[r]
 
@@ -300,21 +300,39 @@ def _attributes(right, start, count, order, position, normal, power, lum_w, seed
     return lo, hi, axis, cosv, pw, lum, rep
 
 
-def _subtree(vpls, index, seed, base, diag):
+def _subtree(vpls, index, seed, base, diag, kind) -> LightTree:
+    """The tree over vpls[index], all of one kind."""
     pos = vpls.position[index]
     nor = vpls.normal[index]
     pts = np.concatenate([pos, nor * (NORMAL_WEIGHT * diag)], axis=1)
-    if vpls.kind[index[0]] == KIND_DIRECTIONAL:
+    if kind == KIND_DIRECTIONAL:
         pts[:, :3] = 0.0  # directions at infinity: split by direction only
     order = np.arange(len(index), dtype=np.int64)
     right, start, count = _topology(pts, order)
-    lo, hi, axis, cosv, pw, lum, rep = _attributes(right, start, count, order, pos, nor, vpls.power[index], LUM,
+    lo, hi, axis, cosv, pw, lum, rep = _attributes(right, start, count, order, pos, nor, vpls.power[index], LUMINANCE,
                                                    seed, base)
-    return lo, hi, axis, cosv, pw, lum, index[rep], right
+    return LightTree(lo, hi, axis, cosv, pw, lum, index[rep], right, np.full(len(lum), kind, np.int8))
+
+
+def _joined(a: LightTree, b: LightTree, seed) -> LightTree:
+    """One tree over two: a new root over a's and b's roots (its
+    representative a's with probability lum_a / lum, drawn from the seed),
+    a then b depth-first below it."""
+    root_lum = a.lum[0] + b.lum[0]
+    rep = a.rep[0] if seed_unit(seed) * root_lum < a.lum[0] else b.rep[0]
+    root = LightTree(np.minimum(a.lo[:1], b.lo[:1]), np.maximum(a.hi[:1], b.hi[:1]), np.array([[0.0, 1.0, 0.0]]),
+                     np.array([-1.0]), a.power[:1] + b.power[:1], np.array([root_lum]), np.array([rep], np.int64),
+                     np.array([1 + len(a)], np.int64), np.array([-1], np.int8))
+    right_a = np.where(a.right >= 0, a.right + 1, -1)
+    right_b = np.where(b.right >= 0, b.right + 1 + len(a), -1)
+    return LightTree(*(np.concatenate([getattr(root, f), getattr(a, f), getattr(b, f)]) for f in
+                       ("lo", "hi", "axis", "cos", "power", "lum", "rep")),
+                     np.concatenate([root.right, right_a, right_b]), np.concatenate([root.kind, a.kind, b.kind]))
 
 
 def build_tree(vpls, seed=0) -> LightTree:
-    """The light tree of `vpls` (at least one)."""
+    """The light tree of `vpls` (at least one): a subtree per kind (points,
+    directions), joined under one root when there are both."""
     parts = []
     diag = 1.0
     area = np.nonzero(vpls.kind == KIND_AREA)[0]
@@ -323,22 +341,7 @@ def build_tree(vpls, seed=0) -> LightTree:
     for kind in (KIND_AREA, KIND_DIRECTIONAL):
         idx = np.nonzero(vpls.kind == kind)[0].astype(np.int64)
         if len(idx):
-            parts.append((kind, _subtree(vpls, idx, seed, 0 if kind == KIND_AREA else 1 << 40, diag)))
+            parts.append(_subtree(vpls, idx, seed, 0 if kind == KIND_AREA else 1 << 40, diag, kind))
     if not parts:
         raise ValueError("no VPLs to build a light tree over")
-    if len(parts) == 1:
-        kind, (lo, hi, axis, cosv, pw, lum, rep, right) = parts[0]
-        return LightTree(lo, hi, axis, cosv, pw, lum, rep, right, np.full(len(lum), kind, np.int8))
-    (k0, a), (k1, b) = parts
-    n0 = len(a[5])
-    root_lum = a[5][0] + b[5][0]
-    h = ((int(seed) * 0x9E3779B97F4A7C15) % (1 << 64) >> 11) / float(1 << 53)
-    root = (np.minimum(a[0][0], b[0][0]), np.maximum(a[1][0], b[1][0]), np.array([0.0, 1.0, 0.0]), -1.0,
-            a[4][0] + b[4][0], root_lum, a[6][0] if h * root_lum < a[5][0] else b[6][0])
-    right_a = np.where(a[7] >= 0, a[7] + 1, -1)
-    right_b = np.where(b[7] >= 0, b[7] + 1 + n0, -1)
-    cat = lambda r, x, y: np.concatenate([np.asarray(r)[None], x, y])  # noqa: E731
-    return LightTree(cat(root[0], a[0], b[0]), cat(root[1], a[1], b[1]), cat(root[2], a[2], b[2]),
-                     cat(root[3], a[3], b[3]), cat(root[4], a[4], b[4]), cat(root[5], a[5], b[5]),
-                     cat(root[6], a[6], b[6]), np.concatenate([[1 + n0], right_a, right_b]),
-                     np.concatenate([[-1], np.full(n0, k0), np.full(len(b[5]), k1)]).astype(np.int8))
+    return parts[0] if len(parts) == 1 else _joined(parts[0], parts[1], seed)

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.colour import LUMINANCE
 from ..kernels.rng import rand01
 from .vpl import KIND_DIRECTIONAL, VPLs
 
-LUM = np.array([0.2126, 0.7152, 0.0722])
 STREAM_ORDER = 0x1A5  # rand01 index of the list's rotation (kernels/rng.py's table)
 
 
@@ -42,7 +42,7 @@ def ordered_vpls(vpls: VPLs, count: int, scene_radius: float, seed: int = 0) -> 
     the sum over all VPLs)."""
     if len(vpls) == 0 or count <= 0:
         return VPLs(*(getattr(vpls, f)[:0] for f in ("kind", "position", "normal", "power", "area", "indirect")))
-    imp = vpls.power @ LUM
+    imp = vpls.power @ LUMINANCE
     imp = np.where(vpls.kind == KIND_DIRECTIONAL, imp * np.pi * scene_radius ** 2, imp)
     imp = np.maximum(imp, 0.0)
     total = imp.sum()

@@ -25,9 +25,10 @@ import numpy as np
 from numba import njit
 
 from ..kernels.rng import rand01
+from ..scene.model import LightKind
 from ..scene.surfaces import SKY_HEMISPHERE, SKY_NONE, sample_emitter, sky_solid_angle, triangle_normal
 
-KIND_AREA, KIND_DIRECTIONAL = 0, 1
+KIND_AREA, KIND_DIRECTIONAL = int(LightKind.AREA), int(LightKind.DIRECTIONAL)  # a VPL is a point or a direction
 STREAM_VPL = 0x7F1  # rand01 index of the direct VPLs' stream (dims 0..3 per VPL: see kernels/rng.py's table)
 
 

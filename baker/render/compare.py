@@ -18,10 +18,10 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
+from ..kernels.colour import LUMINANCE
 from ..kernels.traverse import closest_hit
 from .camera import camera_array, primary_ray, subpixel
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 @dataclass(frozen=True)

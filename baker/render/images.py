@@ -12,13 +12,13 @@ import numpy as np
 
 from ..errors import VoxgiError
 from ..fileio import atomic_write
+from ..kernels.colour import LUMINANCE
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 def auto_exposure(image: np.ndarray) -> float:
     """Scale mapping the log-average luminance of the lit pixels to 0.18."""
-    lum = image.astype(np.float64) @ LUMA
+    lum = image.astype(np.float64) @ LUMINANCE
     lit = lum[lum > 0]
     if lit.size == 0:
         return 1.0

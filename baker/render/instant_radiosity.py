@@ -8,25 +8,33 @@ exact in every frame.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from .lightcuts_frame import trace_samples
+from .lightcuts_frame import camera_samples
+
+
+@dataclass(frozen=True)
+class IRStats:
+    """frames averaged, VPLs used, and the last frame's relative change."""
+    frames: int
+    vpls_used: int
+    change: float
 
 
 def render_instant_radiosity(bvh, surfaces, ordered, cam, width, height, per_frame=16, frames=256,
                              tolerance=0.0, progress=None):
     """Linear radiance (height, width, 3) float32 after `frames` frames (or
     fewer: stops when a frame changes the image by less than `tolerance`,
-    relative to its mean, 0: never), and {'frames', 'vpls_used', 'change'}."""
+    relative to its mean, 0: never), and its IRStats."""
     from ..lights import Lights, irradiance
     from ..lights.vpl import VPLs
     from ..startup import checkpoint
     n = width * height
     eps = 1e-5 * surfaces.scale
-    point, normal, base, albedo, shade, _, _ = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height,
-                                                             np.arange(n, dtype=np.int64), np.zeros(n, np.int64), 1,
-                                                             eps)
+    s = camera_samples(bvh, surfaces, cam, width, height, np.arange(n, dtype=np.int64), np.zeros(n, np.int64), 1, eps)
+    point, normal, base, albedo, shade = s.point, s.normal, s.base, s.albedo, s.shade
     from dataclasses import replace
     no_punctual = replace(surfaces, arrays=surfaces.arrays._replace(light_kind=np.zeros(0, np.int32)))
     empty = VPLs(*(getattr(ordered, k)[:0] for k in ("kind", "position", "normal", "power", "area", "indirect")))
@@ -52,5 +60,4 @@ def render_instant_radiosity(bvh, surfaces, ordered, cam, width, height, per_fra
             progress(1)
         if tolerance > 0 and f > 1 and change < tolerance:
             break
-    return image.reshape(height, width, 3).astype(np.float32), {"frames": f, "vpls_used": min(f * per_frame, total),
-                                                                 "change": change}
+    return image.reshape(height, width, 3).astype(np.float32), IRStats(f, min(f * per_frame, total), change)

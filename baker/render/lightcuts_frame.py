@@ -17,11 +17,14 @@ patch's edge across one surface, which pass 1 cannot see) takes the same
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
+from ..kernels.colour import LUMINANCE
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.surfaces import albedo_at, sky_radiance
 from .camera import primary_ray, subpixel
@@ -30,8 +33,26 @@ AA = 4                 # the edge pixels' pattern: AA x AA
 NORMAL_COS = 0.9
 DEPTH_REL = 0.05
 CONTRAST = 0.2         # pass 2: luminance contrast to a 4-neighbour (a cut's own error is a few %)
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 BATCH = 1 << 16        # shading points per lightcuts call (progress and Ctrl-C between calls)
+
+
+class Samples(NamedTuple):
+    """Camera samples as trace_samples returns them (the one pack/unpack
+    pair): shading point and normal (n, 3), what a sample adds before
+    lighting (emission or sky), albedo (n, 3), shade (n,) bool, material
+    (n,) int32 (-1: background, -2: a one-sided back), depth (n,)."""
+    point: np.ndarray
+    normal: np.ndarray
+    base: np.ndarray
+    albedo: np.ndarray
+    shade: np.ndarray
+    mat: np.ndarray
+    depth: np.ndarray
+
+
+def camera_samples(bvh, surfaces, cam, width, height, pix, sub, per_axis, eps) -> Samples:
+    """trace_samples as a Samples record."""
+    return Samples(*trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, pix, sub, per_axis, eps))
 
 
 @njit(cache=True, parallel=True)
@@ -133,7 +154,7 @@ def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, 
     cut sizes, shadow rays)."""
     from ..lights import irradiance
     from ..startup import checkpoint
-    point, normal, base, albedo, shade = samples[:5]
+    point, normal, base, albedo, shade = samples.point, samples.normal, samples.base, samples.albedo, samples.shade
     h = np.zeros((len(point), 3))
     cuts = np.zeros(len(point), np.int64)
     rays = np.zeros(len(point), np.int64)
@@ -160,48 +181,62 @@ def _supersample(bvh, surfaces, cam, width, height, pixels, eps):
     and weights."""
     epix = np.repeat(pixels, AA * AA)
     esub = np.tile(np.arange(AA * AA), len(pixels))
-    samples = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, epix, esub, AA, eps)
+    samples = camera_samples(bvh, surfaces, cam, width, height, epix, esub, AA, eps)
     return samples, epix, np.full(len(epix), 1.0 / (AA * AA))
+
+
+@dataclass(frozen=True)
+class FrameStats:
+    """What a lightcuts frame cost: shading points (pixels plus the
+    anti-aliased pixels' extra samples), the pixels anti-aliased at
+    geometric edges and at sharp changes of light, the cut sizes and the
+    shadow rays."""
+    shading_points: int
+    edge_pixels: int
+    contrast_pixels: int
+    cut_mean: float
+    cut_max: int
+    shadow_rays: int
+    shadow_rays_per_pixel: float
 
 
 def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
                      brute=False, aa=True, grow=None):
-    """Linear radiance image (height, width, 3) float32 and statistics
-    (cut sizes, shadow rays, edge and contrast pixels). progress(k): k more
+    """Linear radiance image (height, width, 3) float32 and its
+    FrameStats. progress(k): k more
     shading points done; grow(k): k more points than width x height (the
     anti-aliased pixels' samples), for a progress bar's total."""
     n = width * height
     eps = 1e-5 * surfaces.scale
     pix = np.arange(n, dtype=np.int64)
-    first = trace_samples(bvh.arrays, surfaces.arrays, cam, width, height, pix, np.zeros(n, np.int64), 1, eps)
-    edges = edge_pixels(first[5], first[1], first[3 + 3], width, height) if aa else np.zeros(n, bool)
+    first = camera_samples(bvh, surfaces, cam, width, height, pix, np.zeros(n, np.int64), 1, eps)
+    edges = edge_pixels(first.mat, first.normal, first.depth, width, height) if aa else np.zeros(n, bool)
     e = np.nonzero(edges)[0]
     if len(e):
         second, epix, eweight = _supersample(bvh, surfaces, cam, width, height, e, eps)
         keep = ~edges
-        samples = [np.concatenate([a[keep], b]) for a, b in zip(first, second)]
+        samples = Samples(*(np.concatenate([a[keep], b]) for a, b in zip(first, second)))
         owner = np.concatenate([pix[keep], epix])
         weight = np.concatenate([np.ones(int(keep.sum())), eweight])
     else:
-        samples, owner, weight = list(first), pix, np.ones(n)
+        samples, owner, weight = first, pix, np.ones(n)
     if grow is not None:
-        grow(len(samples[0]) - n)
+        grow(len(samples.point) - n)
     totals = {"points": 0, "shaded": 0, "cuts": 0, "cut_max": 0, "rays": 0}
     image = _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals)
     c = np.zeros(0, np.int64)
     if aa:
-        c = np.nonzero(contrast_pixels(image @ LUMA, edges, width, height, CONTRAST))[0]
+        c = np.nonzero(contrast_pixels(image @ LUMINANCE, edges, width, height, CONTRAST))[0]
     if len(c):
         samples, owner, weight = _supersample(bvh, surfaces, cam, width, height, c, eps)
         if grow is not None:
-            grow(len(samples[0]))
+            grow(len(samples.point))
         image[c] = 0.0
         image += _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress,
                         totals)
-    stats = {"shading_points": totals["points"], "edge_pixels": int(len(e)), "contrast_pixels": int(len(c)),
-             "cut_mean": totals["cuts"] / totals["shaded"] if totals["shaded"] else 0.0,
-             "cut_max": totals["cut_max"], "shadow_rays": totals["rays"],
-             "shadow_rays_per_pixel": totals["rays"] / n}
+    stats = FrameStats(totals["points"], int(len(e)), int(len(c)),
+                       totals["cuts"] / totals["shaded"] if totals["shaded"] else 0.0, totals["cut_max"],
+                       totals["rays"], totals["rays"] / n)
     return image.reshape(height, width, 3).astype(np.float32), stats
 
 

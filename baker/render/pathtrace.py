@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
+from ..kernels.colour import LUMINANCE
 from ..kernels.inline import borrowed, inlined
 from ..kernels.rng import STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
@@ -219,7 +220,6 @@ def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row
 
 
 NO_RAYS = np.empty((0, 3))
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 BAND_SAMPLES = 1 << 18  # camera samples per band: a fraction of a second, so Ctrl-C and the bar respond
 
 

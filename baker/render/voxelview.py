@@ -19,8 +19,7 @@ SUBPIXELS = 4  # per axis: the pixel's value is the mean over SUBPIXELS^2 strati
 
 
 @njit(cache=True, parallel=True)
-def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
-          origin, h, dims, width, height, row0, row1, out):
+def _rows(bvh, double, mat_of, cam, radiance, pieces, width, height, row0, row1, out):
     n = (row1 - row0) * width
     w = 1.0 / (SUBPIXELS * SUBPIXELS)
     for k in prange(n):
@@ -39,8 +38,7 @@ def _rows(bvh, double, mat_of, cam, radiance, piece_key, piece_voxel, piece_plan
             back = nx * dx + ny * dy + nz * dz > 0.0
             if back and not double[mat_of[tri]]:
                 continue  # a one-sided back: black
-            vi = voxel_of_hit(tri, back, ox + t * dx, oy + t * dy, oz + t * dz, piece_key, piece_voxel, piece_plane,
-                              piece_sign, side_start, back_side, origin, h, dims)
+            vi = voxel_of_hit(tri, back, ox + t * dx, oy + t * dy, oz + t * dz, pieces)
             if vi >= 0:
                 r0 += radiance[vi, 0]
                 r1 += radiance[vi, 1]
@@ -55,6 +53,4 @@ def render_voxels(bvh, surfaces, solution, camera_arr, width, height, progress=N
     v = solution.voxels
     return render_bands(_rows, width, height,
                         (bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, camera_arr,
-                         np.ascontiguousarray(solution.radiance), v.piece_key, v.piece_voxel, v.piece_plane,
-                         v.piece_sign, v.side_start, v.back_side, v.origin, v.cell_size, v.dims, int(width),
-                         int(height)), progress)
+                         np.ascontiguousarray(solution.radiance), v.lookup(), int(width), int(height)), progress)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SceneError
 from .model import Camera, Scene, make_camera
 
 OPEN_SIDE = 0.5          # a side of the bounds is open when half the rays from the centre through it escape
@@ -67,6 +68,25 @@ def encloses_centre_from_inside(scene: Scene, bvh, centre, lo, hi) -> bool:
     if back <= 1 / 3:
         return False
     return float(np.median(t[hit] / dist[hit])) < 0.75
+
+
+def camera_for(scene: Scene, which=None, bvh=None) -> Camera:
+    """A camera of the scene by name or index (None: its first, or an
+    automatic one that sees the scene; `bvh` spares that a build)."""
+    if which is None:
+        if scene.cameras:
+            return scene.cameras[0]
+        return auto_camera(scene, bvh)
+    if isinstance(which, int) or (isinstance(which, str) and which.lstrip("-").isdigit()):
+        i = int(which)
+        if not -len(scene.cameras) <= i < len(scene.cameras):
+            raise SceneError(f"camera index {i} out of range ({len(scene.cameras)} cameras)", scene.path)
+        return scene.cameras[i]
+    for cam in scene.cameras:
+        if cam.name == which:
+            return cam
+    names = ", ".join(c.name for c in scene.cameras) or "none"
+    raise SceneError(f"no camera named {which!r} (cameras: {names})", scene.path)
 
 
 def auto_camera(scene: Scene, bvh=None) -> Camera:

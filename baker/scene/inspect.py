@@ -151,3 +151,37 @@ def geometry_report(scene) -> GeometryReport:
     return GeometryReport(len(scene.triangles), _count_in_notes(scene, "duplicate triangle", "dropped"), int(pairs),
                           float(overlap), float(scene.triangle_areas().sum()), shells, members, both,
                           _count_in_notes(scene, "coplanar triangle", "overlapping part out of"))
+
+
+def describe(scene) -> str:
+    """What `voxbake info` prints: triangles, bounds, materials, emitters
+    with their power, punctual lights, the sky and the cameras."""
+    def a(x, p=4):
+        return np.array2string(np.asarray(x), precision=p)
+    lo, hi = scene.bounds()
+    power = scene.emitted_power()
+    out = [f"scene      {scene.path}",
+           f"triangles  {len(scene.triangles)}  (vertices {len(scene.vertices)}, surface area "
+           f"{scene.triangle_areas().sum():.6g})",
+           f"bounds     min {a(lo)}  max {a(hi)}  size {a(hi - lo)}",
+           f"materials  {len(scene.materials)}"]
+    for i, m in enumerate(scene.materials):
+        n = int((scene.material_ids == i).sum())
+        em = f"  emits L_e {a(m.emission)}" if m.emission.max() > 0 else ""
+        tex = "  textured" if m.texture is not None else ""
+        out.append(f"  [{i}] {m.name:<20} albedo {a(m.albedo, 3)}  {'double' if m.double_sided else 'one'}-sided  "
+                   f"{n} triangles{em}{tex}")
+    out.append(f"emitters   {len(scene.emitter_triangles())} triangles, total emitted power {a(power, 5)} W"
+               f" (sum {power.sum():.6g} W)")
+    out.append(f"lights     {len(scene.lights)} punctual")
+    for light in scene.lights:
+        unit = "W/m^2" if light.kind == "directional" else "W/sr"
+        out.append(f"  {light.name:<20} {light.kind:<12} {a(light.intensity)} {unit}")
+    if scene.sky is not None:
+        where = "upper hemisphere" if scene.sky.hemisphere else "whole sphere"
+        out.append(f"sky        radiance {a(scene.sky.radiance)} W m^-2 sr^-1 ({where})")
+    out.append(f"cameras    {len(scene.cameras)}")
+    for i, c in enumerate(scene.cameras):
+        out.append(f"  [{i}] {c.name:<20} at {a(c.position)} looking {a(c.forward, 3)}  yfov "
+                   f"{np.degrees(c.yfov):.1f} deg")
+    return "\n".join(out)

@@ -11,12 +11,35 @@ W m^-2 sr^-1.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from enum import IntEnum
 
 import numpy as np
 
-from ..errors import SceneError
 
-LIGHT_KINDS = ("point", "spot", "directional")
+class LightKind(IntEnum):
+    """Every kind of light under one code, as the kernels, the bake file's
+    VPL rows and the shaders (as #defines KIND_AREA ...) read it: AREA an
+    area emitter, or a VPL at a point with a normal; DIRECTIONAL a sun, or a
+    VPL of the sky (a direction); POINT and SPOT glTF's punctual lights;
+    SKY a uniform sky."""
+    AREA = 0
+    DIRECTIONAL = 1
+    POINT = 2
+    SPOT = 3
+    SKY = 4
+
+    @classmethod
+    def of(cls, name: str) -> "LightKind":
+        """The kind of a punctual light's glTF name ('point', 'spot',
+        'directional')."""
+        return cls[name.upper()]
+
+    @classmethod
+    def defines(cls) -> dict:
+        return {f"KIND_{k.name}": int(k) for k in cls}
+
+
+LIGHT_KINDS = tuple(k.name.lower() for k in (LightKind.POINT, LightKind.SPOT, LightKind.DIRECTIONAL))  # punctual
 UP = np.array([0.0, 1.0, 0.0])  # glTF's up axis: the sky's zenith
 
 
@@ -151,22 +174,3 @@ class Scene:
     def with_lights(self, lights=(), sky: Sky | None = None) -> "Scene":
         """This scene with more punctual lights and (if given) a sky."""
         return replace(self, lights=tuple(self.lights) + tuple(lights), sky=sky if sky is not None else self.sky)
-
-    def camera(self, which=None, bvh=None) -> Camera:
-        """A camera by name or index (None: the first, or an automatic one
-        that sees the scene, scene/camera.py; `bvh` spares it a build)."""
-        if which is None:
-            if self.cameras:
-                return self.cameras[0]
-            from .camera import auto_camera
-            return auto_camera(self, bvh)
-        if isinstance(which, int) or (isinstance(which, str) and which.lstrip("-").isdigit()):
-            i = int(which)
-            if not -len(self.cameras) <= i < len(self.cameras):
-                raise SceneError(f"camera index {i} out of range ({len(self.cameras)} cameras)", self.path)
-            return self.cameras[i]
-        for cam in self.cameras:
-            if cam.name == which:
-                return cam
-        names = ", ".join(c.name for c in self.cameras) or "none"
-        raise SceneError(f"no camera named {which!r} (cameras: {names})", self.path)

@@ -23,10 +23,11 @@ from numba import njit
 
 from ..kernels.geometry import unit_cross
 from ..kernels.sampling import sample_cdf, triangle_point
-from .model import UP
+from .model import UP, LightKind
 
-LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_SKY = -1, 0, 1, 2, 3
-KIND_CODE = {"point": LIGHT_POINT, "spot": LIGHT_SPOT, "directional": LIGHT_DIRECTIONAL}
+# the kernels' names for model.LightKind's codes (plain ints: numba folds them as constants)
+LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_SKY = (
+    int(LightKind.AREA), int(LightKind.POINT), int(LightKind.SPOT), int(LightKind.DIRECTIONAL), int(LightKind.SKY))
 SKY_NONE, SKY_HEMISPHERE, SKY_SPHERE = 0, 1, 2
 
 SurfaceArrays = namedtuple("SurfaceArrays", [
@@ -104,7 +105,7 @@ def pack(scene) -> Surfaces:
         tri_normal=_unit_normals(corners), emitters=emitters,
         emitter_cdf=cdf.astype(np.float64), emitter_prob=prob, tex_offset=tex_offset, tex_size=tex_size,
         tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
-        light_kind=np.array([KIND_CODE[l.kind] for l in lights], np.int32),
+        light_kind=np.array([LightKind.of(l.kind) for l in lights], np.int32),
         light_pos=np.array([l.position for l in lights], np.float64).reshape(-1, 3),
         light_dir=np.array([l.direction for l in lights], np.float64).reshape(-1, 3),
         light_intensity=np.array([l.intensity for l in lights], np.float64).reshape(-1, 3),

@@ -20,8 +20,8 @@ from ..progress import bar
 from ..scene.bvh import build_scene_bvh
 from ..scene.surfaces import pack
 from ..stats import Stats, release_freed_memory
-from ..voxels import Voxels, voxelize
-from ..voxels.lookup import pool_parents, smooth_photons
+from ..voxels import Voxels, resolution_for, voxelize
+from .smoothing import pool_parents, smooth_photons
 from .directions import direction_set
 from .photons import shoot_photons
 from .propagate import LineSweeper
@@ -71,7 +71,7 @@ def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=N
     With smoothing k > 0 (and photons of luminance photon_lum): each voxel
     pools its photons with the neighbours on its surface that agree with
     it within k standard deviations of the photon noise
-    (voxels/lookup.smooth_photons; bvh: the scene's, to see that nothing
+    (solve/smoothing.py: smooth_photons; bvh: the scene's, to see that nothing
     stands between them). Otherwise a voxel under a quarter cell
     takes the pooled estimate (P + P_parent) / (A + A_parent) of itself and
     its largest neighbour on the same surface (photon noise scales as
@@ -104,7 +104,7 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
         bvh = bvh or build_scene_bvh(scene)
         surfaces = surfaces or pack(scene)
     with stats.stage("voxelize"):
-        vox = voxelize(scene, config.resolution_for(scene), config.cell_size, config.memory_budget_mb, surfaces)
+        vox = voxelize(scene, resolution_for(scene, config), config.cell_size, config.memory_budget_mb, surfaces)
         release_freed_memory()
     n = len(vox)
     n_photons = config.photon_count(n)

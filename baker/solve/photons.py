@@ -36,7 +36,8 @@ from ..kernels.bvh import STACK_SIZE
 from ..kernels.rng import STREAM_PHOTON_ROTATION, rand01
 from ..kernels.sampling import cosine_hemisphere, frame, sample_cdf
 from ..kernels.traverse import closest_hit, hit_normal
-from ..scene.surfaces import (KIND_CODE, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, sample_emitter,
+from ..scene.model import LightKind
+from ..scene.surfaces import (LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, sample_emitter,
                               sky_solid_angle, spot_falloff, triangle_normal)
 from ..voxels.lookup import voxel_of_hit
 
@@ -192,15 +193,13 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, i0, i1, n, r
 
 
 @njit(cache=True, parallel=True)
-def find_voxels(points, ok, hit_tri, hit_back, piece_key, piece_voxel, piece_plane, piece_sign, side_start, back_side,
-                origin, h, dims):
+def find_voxels(points, ok, hit_tri, hit_back, pieces):
     """Voxel of each photon hit (the piece of the side it hit), -1 if none."""
     n = points.shape[0]
     out = np.full(n, -1, np.int64)
     for i in prange(n):
         if ok[i]:
-            out[i] = voxel_of_hit(hit_tri[i], hit_back[i], points[i, 0], points[i, 1], points[i, 2], piece_key,
-                                  piece_voxel, piece_plane, piece_sign, side_start, back_side, origin, h, dims)
+            out[i] = voxel_of_hit(hit_tri[i], hit_back[i], points[i, 0], points[i, 1], points[i, 2], pieces)
     return out
 
 
@@ -242,7 +241,7 @@ def light_table(scene, surfaces):
             p = 2 * np.pi * (1 - np.cos(light.outer_cone)) * i  # falloff applied per photon
         else:
             p = 4.0 * radius * radius * i  # over the square the photons leave from
-        kinds.append(KIND_CODE[light.kind])
+        kinds.append(int(LightKind.of(light.kind)))
         refs.append(j)
         powers.append(p)
     sky = surfaces.arrays.sky_mode
@@ -266,9 +265,7 @@ def _disc_cells(g):
 
 
 def _voxels_hit(voxels, pts, ok, tri, back):
-    return find_voxels(pts, ok, tri, back, voxels.piece_key, voxels.piece_voxel, voxels.piece_plane,
-                       voxels.piece_sign, voxels.side_start, voxels.back_side, voxels.origin, voxels.cell_size,
-                       voxels.dims)
+    return find_voxels(pts, ok, tri, back, voxels.lookup())
 
 
 def _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps):

@@ -27,9 +27,9 @@ the records' layouts are in records.py):
 - waiting records come from a free list, so the live ones stay few and
   close together, and carry a bound that lets a line lying in a surface
   test its list in O(1) per voxel (such families cost O(L^2) per line
-  without it: 7x a usual family at 384 cells);
+  without it);
 - the sweep records a 4-byte hit instead of adding B(y) into the gathered
-  sums (a random read-modify-write of 24 bytes into 24 MB: 1.6x slower),
+  sums (a random read-modify-write of 24 bytes into a large array),
   through a ring of prefetched stores; the collecting pass reads and
   writes the sums in sequence, once per HIT_BATCH families, with the
   quadrature sums S;
@@ -37,14 +37,16 @@ the records' layouts are in records.py):
   (prefetching the head voxel's sums as well costs more than it saves: it
   needs a load of the record);
 - the rare paths (cells with several voxels, cut cells, convex edges) are
-  functions of their own: inlined, they slow the common path by a third
-  (register pressure);
+  functions of their own: inlined, they slow the common path (register
+  pressure);
 - the loop's helpers are chosen by instruction counts (callgrind, one
   thread): a helper with array arguments marked inline="always" left
-  numba's reference counting in the loop (8% more instructions per
-  transfer); `unlink` as a plain function costs nothing; the hit ring and
-  the record pool written as functions cost 7% and are written out here.
+  numba's reference counting in the loop; `unlink` as a plain function
+  costs nothing; the hit ring and the record pool written as functions
+  cost more and are written out here.
 """
+from collections import namedtuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -57,6 +59,18 @@ from .visibility import (CHECK, GATHER, WAIT, above_deferred, back_beyond_cut, b
                          deferred_t, defers, front_check, front_min, front_outcome, hits_back, in_front, order_cell,
                          off_edge, over_surface, past_silhouette,
                          passes_parallel, sheet_convex_edge)
+
+# The sweep's records (the one pack, in propagate_families; kernels unpack them at entry):
+# - AxisVoxels, the voxels in one axis's order: starts (ng + 1,) each cell's first voxel, gcell (ng, 3) the
+#   cells, order (n,) the voxels, pos (n * POS,) their float32 rows flat, pos_all (n, POS) in voxel order,
+#   cutp (m, CUT) the cut planes;
+# - Families, the direction set: vectors (nf, 3) canonical s, units (nf, 3) unit s, weights (nf,) dW / pi,
+#   offsets (nf, 2) the line offsets mu, mu';
+# - Lanes, each lane's scratch (first index: the lane): line tables, waiting records and their free list,
+#   a cell's group buffer and keys, the cells' line ids.
+AxisVoxels = namedtuple("AxisVoxels", ["starts", "gcell", "order", "pos", "pos_all", "cutp"])
+Families = namedtuple("Families", ["vectors", "units", "weights", "offsets"])
+Lanes = namedtuple("Lanes", ["tabs", "recs", "frees", "bufs", "bkeys", "lid"])
 
 AHEAD_TABLE = 32  # cells ahead: prefetch the line's table entry
 AHEAD_HEAD = 16   # ... its first waiting record
@@ -105,14 +119,16 @@ def _find(idx, dense, tab, mask, stamp):
 
 
 @njit(cache=True)
-def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, uz, forward, tau, kappa,
-           dense, tab, mask, stamp, rec, recf, free, buf, bkey):
-    """One sweep of one direction (forwards: +s, backwards: -s) over the
-    voxels in this axis's order (index = position in the order; lengths in
-    cells). gcell (ng, 3) int32 the cells, starts (ng + 1,) their voxels,
-    lid (ng,) their line ids. The hot arrays come flat (pos, tab, rec,
+def _sweep(vox, lane, hit, nb, col, u, forward, tau, kappa, dense, mask, stamp):
+    """One sweep of one direction u (forwards: +s, backwards: -s) over the
+    voxels of vox (an AxisVoxels: index = position in the order; lengths in
+    cells). lane: one lane's (tab, rec, recf, free, buf, bkey, lid), lid
+    (ng,) the cells' line ids. The hot arrays come flat (pos, tab, rec,
     recf: rows of POS, LINE, REC, REC; hit: rows of nb, this family's
     column col) and are indexed with unsigned offsets."""
+    starts, gcell, order, pos, pos_all, cutp = vox
+    tab, rec, recf, free, buf, bkey, lid = lane
+    ux, uy, uz = u
     pos2 = pos.reshape((-1, POS))
     ng = starts.shape[0] - 1
     if not forward:
@@ -212,7 +228,7 @@ def _sweep(starts, lid, gcell, order, pos, pos_all, cutp, hit, nb, col, ux, uy, 
                     if what == GATHER or pv != EMPTY:
                         # x's ray met y (or, hidden, clears a deferred gather): record it, deferred (a store
                         # that misses the cache holds up every later store; a prefetch holds up nothing):
-                        # prefetch the slot now, write it RING gathers later (1.1x at a million voxels)
+                        # prefetch the slot now, write it RING gathers later
                         hp = np.uint64(x * nb + col)
                         prefetch(hit, hp)
                         slot = nh & (RING - 1)
@@ -375,7 +391,6 @@ def _collect(hit, nf, fams, units, weights, pos_all, radiosity, gat, quad):
     n = hit.shape[0]
     for x in prange(n):
         # the radiosity rows met are scattered: prefetch those of a voxel AHEAD_COLLECT on
-        # (1.15x on one thread at a million voxels)
         xa = x + AHEAD_COLLECT
         if xa < n:
             for i in range(nf):
@@ -406,13 +421,12 @@ def _collect(hit, nf, fams, units, weights, pos_all, radiosity, gat, quad):
 
 
 @njit(cache=True)
-def _family(f, fi, col, st, gcell, order, pos, pos_all, cutp, hit, cell_lo, cell_hi, vectors, units, weights,
-            offsets, k, tau, kappa, size, tab, rec, free, buf, bkey, lid, stamp0):
+def _family(f, fi, col, vox, hit, cell_lo, cell_hi, fam, k, tau, kappa, size, lanes, lane, stamp0):
     """Both sweeps of family f (its fi-th of this axis), its hits into
-    column col, with one lane's line table and records."""
+    column col, with lane `lane`'s line table and records."""
     k1, k2 = (k + 1) % 3, (k + 2) % 3
-    A, B, C = np.int64(vectors[f, k]), np.int64(vectors[f, k1]), np.int64(vectors[f, k2])
-    mu, mu2 = np.int64(offsets[f, 0]), np.int64(offsets[f, 1])
+    A, B, C = np.int64(fam.vectors[f, k]), np.int64(fam.vectors[f, k1]), np.int64(fam.vectors[f, k2])
+    mu, mu2 = np.int64(fam.offsets[f, 0]), np.int64(fam.offsets[f, 1])
     x0, x1, y0, y1, z0, z1 = cell_lo[k], cell_hi[k], cell_lo[k1], cell_hi[k1], cell_lo[k2], cell_hi[k2]
     pmin = (min(C * x0, C * x1) - A * z1 - mu) // A
     pmax = (max(C * x0, C * x1) - A * z0 - mu) // A
@@ -420,36 +434,34 @@ def _family(f, fi, col, st, gcell, order, pos, pos_all, cutp, hit, cell_lo, cell
     qmax = (max(B * x0, B * x1) - A * y0 - mu2) // A
     P = pmax - pmin + 1
     dense = P * (qmax - qmin + 1) <= size
-    _line_ids(gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid)
+    tab, rec, lid = lanes.tabs[lane], lanes.recs[lane], lanes.lid[lane]
+    _line_ids(vox.gcell, k, A, B, C, mu, mu2, pmin, P, qmin, lid)
+    one = (tab.reshape(-1), rec.reshape(-1), rec.view(np.float32).reshape(-1), lanes.frees[lane], lanes.bufs[lane],
+           lanes.bkeys[lane], lid)
     for sw in range(2):
         # a stamp per sweep: the lane's table serves both
-        _sweep(st, lid, gcell, order, pos, pos_all, cutp, hit.reshape(-1), hit.shape[1], col,
-               units[f, 0], units[f, 1], units[f, 2], sw == 0, tau, kappa, dense,
-               tab.reshape(-1), size - 1, 2 * (stamp0 + fi) + sw, rec.reshape(-1), rec.view(np.float32).reshape(-1),
-               free, buf, bkey)
+        _sweep(vox, one, hit.reshape(-1), hit.shape[1], col, (fam.units[f, 0], fam.units[f, 1], fam.units[f, 2]),
+               sw == 0, tau, kappa, dense, size - 1, 2 * (stamp0 + fi) + sw)
 
 
 @njit(cache=True, parallel=True)
-def _families(fams, st, gcell, order, pos, pos_all, cutp, radiosity, hit, gat, quad, cell_lo, cell_hi, vectors,
-              units, weights, offsets, k, tau, kappa, size, tabs, recs, frees, bufs, bkeys, lid, stamp0):
-    """The families of one axis in batches of hit.shape[1]: two lanes share
-    a batch (lane l takes its families l, l + 2, ...; each lane has its own
-    table, records and line ids, and a family its own hit column),
+def _families(fams, vox, radiosity, hit, gat, quad, cell_lo, cell_hi, fam, k, tau, kappa, size, lanes, stamp0):
+    """The families `fams` of one axis in batches of hit.shape[1]: two lanes
+    share a batch (lane l takes its families l, l + 2, ...; each lane has
+    its own table, records and line ids, and a family its own hit column),
     then the batch's gathers are collected in family order. The lanes are
     fixed by the family's place, not by the threads: the same sums for any
     thread count. Two lanes sweeping the same direction through the same
-    voxel data at about the same time share the cache (1.1x against the
-    two sweeps of one family in parallel, at a million voxels)."""
+    voxel data at about the same time share the cache (better than two
+    sweeps of one family in parallel)."""
     nb = hit.shape[1]
-    pf = pos.reshape(-1)
     for b0 in range(0, fams.shape[0], nb):
         nbf = min(nb, fams.shape[0] - b0)
         for lane in prange(2):
             for col in range(lane, nbf, 2):
-                _family(fams[b0 + col], b0 + col, col, st, gcell, order, pf, pos_all, cutp, hit, cell_lo,
-                        cell_hi, vectors, units, weights, offsets, k, tau, kappa, size, tabs[lane], recs[lane],
-                        frees[lane], bufs[lane], bkeys[lane], lid[lane], stamp0)
-        _collect(hit, nbf, fams[b0:b0 + nbf], units, weights, pos_all, radiosity, gat, quad)
+                _family(fams[b0 + col], b0 + col, col, vox, hit, cell_lo, cell_hi, fam, k, tau, kappa, size, lanes,
+                        lane, stamp0)
+        _collect(hit, nbf, fams[b0:b0 + nbf], fam.units, fam.weights, vox.pos_all, radiosity, gat, quad)
 
 
 def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, radiosity, vectors, axes, units, weights,
@@ -486,18 +498,20 @@ def propagate_families(orders, starts, cell, cell_lo, cell_hi, pos_all, cutp, ra
     # a call per slice of about CALL_TRANSFERS transfers (whole batches, in order: the same sums), so that
     # a command's Ctrl-C can stop between them (startup.checkpoint)
     per_call = HIT_BATCH * max(1, CALL_TRANSFERS // (2 * HIT_BATCH * n))
+    lanes = Lanes(tabs, recs, frees, bufs, bkeys, lid)
+    fam = Families(vectors, units, weights, offsets)
     stamp = 0
     for k in range(3):
         fams = np.nonzero(axes == k)[0]
         if len(fams) == 0:
             continue
         _permute(orders[k], starts[k], cell, pos_all, pos, gcell)
+        vox = AxisVoxels(starts[k], gcell, orders[k], pos.reshape(-1), pos_all, cutp)
         for f0 in range(0, len(fams), per_call):
             checkpoint()
             part = fams[f0:f0 + per_call]
-            _families(part, starts[k], gcell, orders[k], pos, pos_all, cutp, radiosity, hit, gathered, quad,
-                      cell_lo, cell_hi, vectors, units, weights, offsets, k, tau, kappa, table_size, tabs, recs, frees,
-                      bufs, bkeys, lid, stamp)
+            _families(part, vox, radiosity, hit, gathered, quad, cell_lo, cell_hi, fam, k, tau, kappa, table_size,
+                      lanes, stamp)
             stamp += len(part)  # stamps 2 (stamp + fi) + sweep: distinct for every sweep of the bounce
     return gathered, quad
 

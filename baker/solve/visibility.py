@@ -18,8 +18,8 @@ y's plane (lengths in cells):
     (`sheet_convex_edge`, with x or the voxel last added);
   * another surface standing between x and y (`hidden`): one crossing y's
     cell (`separated`, a wall standing on a floor), one that cut x's or
-    y's pieces (`cut_between`, a floor running under a wall), or y's own
-    plane cutting x's cell (`cut_by`); it hides y when x's ray heads for
+    y's pieces (`cut_between`, a floor running under a wall, or y's own
+    plane cutting x's cell); it hides y when x's ray heads for
     it (HIDES), and x keeps waiting when the ray moves away from it
     (AWAY: y is on the line only because the line is a cell thick);
   * a surface the line ran along after x joined (`across`, a line a cell
@@ -41,14 +41,16 @@ these functions what each pair does; what makes it fast (prefetching, the
 ring of hits, stamped tables, the record pool, the lists' bounds) lives
 there and in records.py. (The per-pair functions inlined into the sweep
 take numbers, not arrays: numba's inlining of a function with array
-arguments left reference counting in the sweep's loop, 8-20% more
-instructions per transfer, measured with callgrind; the rarer tests are
+arguments left reference counting in the sweep's loop (more
+instructions per transfer under callgrind); the rarer tests are
 functions of their own, called out of line.)
 """
-import numpy as np
-from numba import njit
+import os
 
-from ..voxels.tolerances import SAME_PLANE_COS, SHEET_BACK_COS
+import numpy as np
+from numba import config, njit
+
+from ..voxels.tolerances import SAME_PLANE_COS
 from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_X, P_Y,
                       P_Z, R_DEFER, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, SHEET_FLAT, cut_row,
                       cut_side, is_sheet)
@@ -68,6 +70,27 @@ DEFER_MAX = 8.0       # cells: ... and under this (a gather deferred further wou
 #                       grazing rays' length, not stay O(voxels x directions))
 DEFER_TIE = 1e-5      # cells: the deferral's tests clear their bounds by this (grid-aligned scenes put the ray's
 #                       height exactly on them, where the rounding of one sum or another would decide)
+# The clauses, each of which a test of tests/test_visibility_rule.py must miss (tests/test_clauses.py): with
+# NUMBA_DISABLE_JIT=1 (the kernels run as Python) VOXGI_DISABLE_CLAUSE=<name> turns that one off. Compiled kernels
+# never see the switch (OFF is 0 and every test of it folds away), so no cached kernel lacks a clause.
+CLAUSES = ("separated", "cut_between", "passes_parallel", "across", "back_to_back", "order_ties",
+           "back_beyond_cut", "convex_edge", "sheet_front", "defers", "sheet_convex_edge", "edge_of_x",
+           "past_silhouette", "off_edge")
+(SEPARATED, CUT_BETWEEN, PASSES_PARALLEL, ACROSS, BACK_TO_BACK, ORDER_TIES, BACK_BEYOND_CUT, CONVEX_EDGE,
+ SHEET_FRONT, DEFERS, SHEET_CONVEX_EDGE, EDGE_OF_X, PAST_SILHOUETTE, OFF_EDGE) = range(1, len(CLAUSES) + 1)
+
+
+def _clause_off() -> int:
+    name = os.environ.get("VOXGI_DISABLE_CLAUSE", "")
+    if not name or not config.DISABLE_JIT:
+        return 0
+    if name not in CLAUSES:
+        raise ValueError(f"VOXGI_DISABLE_CLAUSE={name!r}: not a clause ({', '.join(CLAUSES)})")
+    return CLAUSES.index(name) + 1
+
+
+OFF = _clause_off()
+
 CLEAR, HIDES, AWAY = 0, 1, 2  # a surface between x and y: none; in the way of x's ray; behind it (the ray moves
 #                               away from it: y is on the line only because the line is a cell thick)
 
@@ -84,6 +107,8 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
     level with y. AWAY when such planes are there but x's ray moves away
     from (or along) each of them, or meets them only beyond y: it never
     reaches their other side where y is. Else CLEAR."""
+    if OFF == SEPARATED:
+        return CLEAR
     out = CLEAR
     for i in range(m):
         e = buf[i]
@@ -123,19 +148,6 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
 
 
 @njit(cache=True)
-def cut_by(px, x, pos, y, cutp, tau_h):
-    """Is x's cell cut by y's own surface (x's cutting plane is y's plane)?
-    Then x, behind y's plane even within tau, sees y's back, not its face."""
-    j = cut_row(px, x)
-    n0, n1, n2 = float(pos[y, P_NX]), float(pos[y, P_NY]), float(pos[y, P_NZ])
-    dot = cutp[j, C_NX] * n0 + cutp[j, C_NY] * n1 + cutp[j, C_NZ] * n2
-    if abs(dot) <= SAME_PLANE_COS:
-        return False
-    dy = float(pos[y, P_X]) * n0 + float(pos[y, P_Y]) * n1 + float(pos[y, P_Z]) * n2
-    return abs(cutp[j, C_D] - dot * dy) < tau_h
-
-
-@njit(cache=True)
 def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
     """Voxel a was made by cutting its pieces with another surface's plane
     (a wall standing on a floor, a floor running under a wall): if b lies
@@ -147,6 +159,8 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
     (y is on the line only because the line is a cell thick); b on that
     surface facing away from a: HIDES when a waits, AWAY when b waits (a
     lies behind b's own plane); else CLEAR."""
+    if OFF == CUT_BETWEEN:
+        return CLEAR
     if pa[a, P_CUT] == 0.0:
         return CLEAR
     sign = cut_side(pa, a)
@@ -202,6 +216,8 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
 def passes_parallel(w, pos, j, rec, recf, tau_h):
     """The line passes voxel w, parallel to it: every waiting voxel (list
     from record j) beyond tau of w's plane remembers w (the last such)."""
+    if OFF == PASSES_PARALLEL:
+        return
     w0, w1, w2 = float(pos[w, P_X]), float(pos[w, P_Y]), float(pos[w, P_Z])
     n0, n1, n2 = float(pos[w, P_NX]), float(pos[w, P_NY]), float(pos[w, P_NZ])
     while j != EMPTY:
@@ -220,6 +236,8 @@ def across(rec, recf, jr, pos, y, tau_h):
     line parallel to a wall, a cell thick, can pass from one side of the
     wall to the other inside the wall's cells (a lid's inner edge looking
     down along the box's wall, the floor just outside it)."""
+    if OFF == ACROSS:
+        return False
     w = np.int64(rec[jr + R_PASSED])
     w0, w1, w2 = float(pos[w, P_X]), float(pos[w, P_Y]), float(pos[w, P_Z])
     n0, n1, n2 = float(pos[w, P_NX]), float(pos[w, P_NY]), float(pos[w, P_NZ])
@@ -243,6 +261,8 @@ def back_to_back(rec, recf, jr, pos_all, pos, y, d, kappa_h):
     noisy. Then x does not see it. (Another sheet facing x from more than
     kappa away is seen; two sheets closer than that are one surface at
     this resolution.)"""
+    if OFF == BACK_TO_BACK:
+        return False
     if d > kappa_h:
         return False
     dot = float(recf[jr + R_NX]) * float(pos[y, P_NX]) + float(recf[jr + R_NY]) * float(pos[y, P_NY]) + \
@@ -271,6 +291,8 @@ def order_cell(a, m, pos, ux, uy, uz, buf, bkey):
         t = float(pos[v, P_X]) * ux + float(pos[v, P_Y]) * uy + float(pos[v, P_Z]) * uz
         o = float(pos[v, P_NX]) * ux + float(pos[v, P_NY]) * uy + float(pos[v, P_NZ]) * uz
         late = (o > 0) == is_sheet(pos, v)  # on a tie, after the others
+        if OFF == ORDER_TIES:
+            late = True  # ties in the cell's own order
         j = i
         while j > 0:
             if bkey[j - 1] < t:
@@ -301,8 +323,6 @@ def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, 
         if out == HIDES:
             return HIDES
     if xcut or ycut:
-        if d < 0.0 and xcut and cut_by(px, x, pos, y, cutp, tau_h):
-            return HIDES
         c = cuts_between(px, x, pos, y, cutp, tau_h, ux, uy, uz)
         if c != CLEAR:
             return c
@@ -334,6 +354,8 @@ def back_beyond_cut(px, x, xcut, pos, y, ycut, cutp, tau_h, ux, uy, uz):
     x keeps waiting. (A floor piece beside a scan's base, cut by the
     scan's plane: the scan's sheet in its cell, beyond that plane, faces
     the ray with one face and turns its back with the other.)"""
+    if OFF == BACK_BEYOND_CUT:
+        return False
     return (xcut or ycut) and cuts_between(px, x, pos, y, cutp, tau_h, ux, uy, uz) == AWAY
 
 
@@ -343,6 +365,8 @@ def convex_edge(z, y, pos, tau_h, kappa_h):
     form a convex edge: z just behind y's plane, within kappa, and y behind
     z's plane or within tau in front of it (two facings of one noisy
     surface in a cell: a flat junction)?"""
+    if OFF == CONVEX_EDGE:
+        return False
     z0, z1, z2 = float(pos[z, P_X]), float(pos[z, P_Y]), float(pos[z, P_Z])
     y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
     dz = (z0 - y0) * float(pos[y, P_NX]) + (z1 - y1) * float(pos[y, P_NY]) + (z2 - y2) * float(pos[y, P_NZ])
@@ -359,6 +383,8 @@ def front_min(sheet, tau_h):
     field) a waiting voxel may lie and still see it: tau, or 0 for a face of
     a sheet (within tau behind it, its other face is the one facing the
     waiting voxel)."""
+    if OFF == SHEET_FRONT:
+        return -tau_h
     return 0.0 if (sheet == 1.0 or sheet == 1.0 + SHEET_FLAT) else -tau_h
 
 
@@ -377,6 +403,8 @@ def defers(kind, d, o, ty, tau_h):
     ends (over a surface's edge too: the ray would pass it, but what lies
     beyond is not known here). Deferred over DEFER_MAX cells at most: the
     bounce's cost stays O(voxels x directions)."""
+    if OFF == DEFERS:
+        return False
     if kind < SHEET_FLAT:
         return False
     above = d + ty * o  # the ray's height over y's plane where it passes y
@@ -450,6 +478,8 @@ def sheet_convex_edge(w0, w1, w2, wn0, wn1, wn2, y, pos, kappa_h):
     the sheet's inner face only because the digital line is a cell thick:
     it passes (the continuous ray leaves the surface), as it passes the
     other face's back by `convex_edge`."""
+    if OFF == SHEET_CONVEX_EDGE:
+        return False
     y0, y1, y2 = float(pos[y, P_X]), float(pos[y, P_Y]), float(pos[y, P_Z])
     dw = (w0 - y0) * float(pos[y, P_NX]) + (w1 - y1) * float(pos[y, P_NY]) + (w2 - y2) * float(pos[y, P_NZ])
     ew = (y0 - w0) * wn0 + (y1 - w1) * wn1 + (y2 - w2) * wn2
@@ -506,6 +536,8 @@ def hits_back(d, ex, z_edge, tau_h, kappa_h):
     the list and y form a convex edge (z_edge), or x and y do (x just
     behind y's plane, within kappa; y behind x's plane, or within tau in
     front of it)."""
+    if OFF == EDGE_OF_X:
+        return d < -tau_h and not z_edge
     return d < -tau_h and not z_edge and not (ex < tau_h and d >= -kappa_h)
 
 
@@ -521,6 +553,8 @@ def past_silhouette(d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz, tau_h):
     surface's far side only because it is a cell thick. A ray that hits
     y's back is level with it at or behind the plane (a concave surface
     seen from inside, a flat one: flat voxels never pass)."""
+    if OFF == PAST_SILHOUETTE:
+        return False
     ty = (y0 - x0) * ux + (y1 - x1) * uy + (y2 - x2) * uz
     return d + ty * o > tau_h
 
@@ -548,6 +582,8 @@ def off_edge(cutp, row, d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz):
     thick meets (light lost: a furnace with obstacles fell to 0.925); and a
     back passed from over the surface let light into a closed box at its
     corners, where one straight edge line is a poor fit."""
+    if OFF == OFF_EDGE:
+        return False
     t = -d / o
     p0, p1, p2 = x0 + t * ux, x1 + t * uy, x2 + t * uz
     r0, r1, r2 = p0 - y0, p1 - y1, p2 - y2

@@ -19,8 +19,6 @@ of a patch of one facing always merge into one voxel.
 import numpy as np
 from numba import njit
 
-from ..scene.topology import triangle_adjacency  # noqa: F401 (re-exported for the voxelization)
-
 
 @njit(cache=True)
 def _root(parent, i):

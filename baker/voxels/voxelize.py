@@ -31,6 +31,7 @@ area / h^2, never the bounding volume. The supercover of every triangle
 """
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,13 +42,21 @@ from .albedo import textured_albedo
 from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separating_planes, side_signatures,
                     split_pieces)
 from .clip import clip_pieces, count_candidates
-from .patches import smooth_patches, triangle_adjacency
+from ..scene.topology import triangle_adjacency
+from .patches import smooth_patches
 from .tolerances import (FLAT_COS, MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP,
                          SMOOTH_COS)
 
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
 BYTES_PER_VOXEL = 180      # the Voxels arrays and the sorting temporaries
 MAX_CELLS_PER_AXIS = 2 ** 21
+
+
+# The kernels' views of a Voxels (its .lookup() and .arrays()); the fields as Voxels documents them, h its
+# cell_size.
+PieceLookup = namedtuple("PieceLookup", ["key", "voxel", "plane", "sign", "side_start", "back_side", "origin", "h",
+                                         "dims"])
+VoxelArrays = namedtuple("VoxelArrays", ["key", "cell", "centroid", "normal", "area", "cut_plane", "cut_sign"])
 
 
 @dataclass(frozen=True)
@@ -90,6 +99,17 @@ class Voxels:
 
     def __len__(self):
         return len(self.area)
+
+    def lookup(self) -> "PieceLookup":
+        """The kernels' view of the pieces: which voxel holds a surface
+        point (lookup.voxel_of_hit)."""
+        return PieceLookup(self.piece_key, self.piece_voxel, self.piece_plane, self.piece_sign, self.side_start,
+                           self.back_side, self.origin, float(self.cell_size), self.dims)
+
+    def arrays(self) -> "VoxelArrays":
+        """The kernels' view of the voxels themselves (the preview's texel
+        values, lightmap/voxel_irradiance.py)."""
+        return VoxelArrays(self.key, self.cell, self.centroid, self.normal, self.area, self.cut_plane, self.cut_sign)
 
     @property
     def nbytes(self) -> int:
@@ -147,6 +167,15 @@ def grid_for(scene, resolution: int = 64, cell_size: float = 0.0) -> Grid:
         raise BudgetError(f"grid of {dims.tolist()} cells exceeds 2^21 per axis: use a larger cell size",
                           scene.path)
     return Grid(origin, h, dims)
+
+
+def resolution_for(scene, config) -> int:
+    """Cells along the scene's longest axis for a SolverConfig: its
+    resolution, else one from its surface cells (unused when its cell_size
+    is set)."""
+    if config.resolution > 0 or config.cell_size > 0:
+        return int(config.resolution)
+    return surface_resolution(scene, config.surface_cells)
 
 
 def surface_resolution(scene, surface_cells: int) -> int:

@@ -19,8 +19,8 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import closest_hit
-from ..render.camera import camera_array, primary_ray, render_bands, subpixel
-from ..render.voxelview import SUBPIXELS
+from .camera import camera_array, primary_ray, render_bands, subpixel
+from .voxelview import SUBPIXELS
 
 
 @njit(cache=True, inline="always")
@@ -108,10 +108,11 @@ def render_bake(bake, camera=None, width=256, height=256, progress=None, bvh=Non
     """Linear radiance image (height, width, 3) float32 of the bake seen by
     `camera` (a Camera, a name, an index or None: the bake's first)."""
     from ..scene import build_scene_bvh, pack
+    from ..scene import camera_for
     from ..scene.model import Camera
     bvh = bvh or build_scene_bvh(bake.scene)
     surf = pack(bake.scene)
-    cam = camera if isinstance(camera, Camera) else bake.scene.camera(camera, bvh)
+    cam = camera if isinstance(camera, Camera) else camera_for(bake.scene, camera, bvh)
     return render_bands(_rows, width, height,
                         (bvh.arrays, surf.arrays, np.ascontiguousarray(bake.uv1, np.float64), bake.page,
                          np.ascontiguousarray(bake.pages, np.float32).reshape(-1, 3), int(bake.pages.shape[1]),

@@ -1,0 +1,283 @@
+"""Texel values: sample points on a layout's texels, the preview tier (the
+voxel solution reconstructed at each texel) and the lightcuts tier
+(adaptive shading, anti-aliasing, small triangles shaded at their
+corners), inside-geometry texels and the fill around maps, and the atlas
+of a layout.
+
+A layout is per-triangle Charts (charts.py) or an XatlasLayout
+(xatlas_charts.py); both answer the same protocol: per_triangle (do maps
+follow triangles?), min_texel, chart_count, subtexel_charts(),
+sample(corners, inset, bvh, lift) and pages(texels, emits)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kernels.colour import LUMINANCE
+from .atlas import Lightmaps
+from .charts import Charts, per_triangle_charts
+from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners,
+                     sub_texel_points)
+from .voxel_irradiance import reconstruct
+from .xatlas_charts import xatlas_layout
+
+LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far off their surface for rays
+AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
+BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
+CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
+STRIDE = 2          # adaptive shading: texels on this lattice are shaded first (a power of two)
+
+
+@dataclass(frozen=True)
+class TexelStats:
+    """What lightcuts texels cost: the cut sizes and shadow rays over the
+    points shaded, texels shaded and interpolated (adaptive shading), small
+    triangles' sides shaded at their corners, and texels anti-aliased on a
+    texel_samples x texel_samples grid."""
+    cut_mean: float
+    cut_max: int
+    shadow_rays: int
+    points_shaded: int
+    texels_shaded: int
+    texels_interpolated: int
+    subtexel_triangles: int
+    texels_antialiased: int
+    texel_samples: int
+
+
+@dataclass(frozen=True)
+class TexelSet:
+    """The texels of every map, flat: map m (a per-triangle chart or an
+    xatlas page) is the square map_size[m]^2 at map_offsets[m].
+    layout: Charts or XatlasLayout; texel_tri (N,) int32 the triangle a
+    texel samples (-1: none) and texel_back (N,) bool its back side;
+    point (N, 3) float64 sample points; covered (N,) bool; inside (N,)
+    bool covered texels hidden inside geometry; values (N, 3) float64 H
+    after the fill; filled (N,) bool."""
+    layout: object
+    map_offsets: np.ndarray
+    map_size: np.ndarray
+    texel_tri: np.ndarray
+    texel_back: np.ndarray
+    point: np.ndarray
+    covered: np.ndarray
+    inside: np.ndarray
+    values: np.ndarray
+    filled: np.ndarray
+
+
+def texel_size_for(solution, texel_density=None) -> float:
+    """Scene units per texel: one voxel cell, or 1 / texel_density."""
+    if texel_density:
+        return 1.0 / float(texel_density)
+    return float(solution.voxels.cell_size)
+
+
+def charts_for(scene, texel_size) -> Charts:
+    return per_triangle_charts(scene.triangle_corners(), scene.double_sided[scene.material_ids], texel_size)
+
+
+def layout_for(scene, texel_size, uv="per-triangle"):
+    """Charts (per-triangle) or XatlasLayout (xatlas)."""
+    if uv == "xatlas":
+        return xatlas_layout(scene.vertices, scene.triangles, scene.double_sided[scene.material_ids], texel_size)
+    return charts_for(scene, texel_size)
+
+
+def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0):
+    """(map_offsets, map_size, point, covered, texel_tri, texel_back, owner,
+    corners2d): points clamped onto an edge move `inset` texels inward
+    (texels.inset); texel k's triangle side has its corners at
+    corners2d[owner[k]] (3, 2) in its map's texel units. With the scene's
+    bvh, a per-triangle texel whose centre lies on the surface beyond its
+    triangle's edge samples the centre (texels.onto_coplanar: no seams
+    along the edges between coplanar triangles)."""
+    return layout.sample(corners, inset, bvh, lift)
+
+
+def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
+    """The preview tier: texel values from the voxel solution."""
+    vox = solution.voxels
+    h = float(vox.cell_size)
+    corners = surfaces.arrays.corners
+    texel = layout.min_texel
+    lift = LIFT * min(h, texel)
+    off, size, point, covered, ttri, tback, owner, _ = sample_points(layout, corners, 0.0, bvh, lift)
+    small, cpts = corner_points(layout, corners)
+    by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
+    inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
+                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+
+    def at(tri, back, pts, ok):
+        return reconstruct(bvh.arrays, corners, tri, back, pts, ok, np.ascontiguousarray(solution.irradiance),
+                           vox.arrays(), vox.lookup(), lift)
+
+    values, found = at(ttri, tback, point, covered & ~by_corners)
+    if len(small):  # sub-texel triangles: the solution at their corner points, interpolated (as lightcuts_texels)
+        cv, cf = at(np.repeat(layout.tri[small], 3).astype(np.int32), np.repeat(layout.back[small], 3),
+                    np.ascontiguousarray(cpts.reshape(-1, 3)), np.ones(3 * len(small), bool))
+        cv, cf = cv.reshape(-1, 3, 3), cf.reshape(-1, 3)
+        n = cf.sum(axis=1)
+        mean = (cv * cf[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
+        cv = np.where(cf[..., None], cv, mean[:, None, :])   # a corner that found no voxel: the others' mean
+        idx = corner_values(layout, corners, small, cv, point, off, values)
+        found[idx] = np.repeat(n > 0, layout.size[small].astype(np.int64) ** 2)
+    return finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
+
+
+def side_normals(corners, texel_tri, texel_back):
+    """(N, 3) unit normal of each texel's triangle side (0 where none)."""
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    out = n[np.maximum(texel_tri, 0)]
+    out[texel_back] *= -1
+    out[texel_tri < 0] = 0
+    return out
+
+
+def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.02, cap=1000, seed=0,
+                     progress=None, samples=1, contrast=AA_CONTRAST, interpolate=0.0) -> TexelSet:
+    """The default and high tiers: each texel's irradiance by lightcuts over
+    the VPLs (direct light from the emitters' VPLs with shadow rays, the
+    indirect from the voxels'), at its sample point, on its side.
+    Sub-texel triangles are shaded at their three corner points and
+    interpolated over their maps (corner_points). Adaptive shading
+    (`interpolate` > 0): the texels on the even lattice (every STRIDE-th
+    row and column of a map) are shaded first; a texel between lattice
+    texels (two beside it in its row or column, or four diagonal ones)
+    that agree within `interpolate` of the largest takes their mean
+    (texels.between_lattice), the others are shaded (a shadow's edge, a
+    contact, a triangle's edge). Where the light is smooth this shades a
+    quarter of the texels, and the mean also averages out the cuts' own
+    error. Then anti-aliasing:
+    texels that differ from a neighbour by more than `contrast` (a shadow's
+    edge, a contact) take the mean of a samples x samples grid of points
+    over their square instead (samples 1: off; texels.sub_texel_points;
+    grid points beyond the triangle on a coplanar one that continues the
+    surface are taken there, not clamped onto the shared edge)."""
+    from ..lights import irradiance
+    from ..startup import checkpoint
+    h = float(solution.voxels.cell_size)
+    corners = surfaces.arrays.corners
+    texel = layout.min_texel
+    lift = LIFT * min(h, texel)
+    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift)
+    small, cpts = corner_points(layout, corners)
+    by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
+    # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
+    inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
+                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+    normals = side_normals(corners, ttri, tback)
+    found = covered & (ttri >= 0)
+    values = np.zeros((len(point), 3))
+    cuts, rays = [], [0]
+
+    def shade(pts, nrm, ok):
+        out = np.zeros((len(pts), 3))
+        for a in range(0, len(pts), BATCH):
+            b = slice(a, a + BATCH)
+            out[b], c, r = irradiance(lights, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, cap)
+            cuts.append(c[ok[b]])
+            rays[0] += int(r.sum())
+            checkpoint()
+            if progress is not None:
+                progress(int(ok[b].sum()))
+        return out
+
+    if len(small):
+        cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
+        cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
+        corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
+    want = found & ~by_corners
+    todo = np.nonzero(want)[0]
+    between = np.zeros(len(point), bool)
+    if interpolate > 0:   # shade the even lattice, then each texel between agreeing lattice texels takes their mean
+        m_of = np.repeat(np.arange(len(size)), size * size)
+        q = np.arange(len(point)) - off[m_of]
+        qi, qj = q % size[m_of], q // size[m_of]
+        on = want & (qi % STRIDE == 0) & (qj % STRIDE == 0)
+        first = np.nonzero(on)[0]
+        values[first] = shade(point[first], normals[first], np.ones(len(first), bool))
+        step = STRIDE // 2
+        while step >= 1:
+            level = want & (qi % step == 0) & (qj % step == 0) & ~on
+            reach = np.inf if layout.per_triangle else 2.5 * step * texel  # xatlas: another chart
+            got = between_lattice(values, values @ LUMINANCE, on & ~inside, level & ~inside, point, normals, off, size,
+                                  reach, float(interpolate), step)
+            rest = np.nonzero(level & ~got)[0]
+            values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool))
+            between |= got
+            on |= level
+            step //= 2
+    else:
+        values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+    aa = np.zeros(0, np.int64)
+    if samples > 1:
+        valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
+        reach = np.inf if layout.per_triangle else 2.5 * texel  # an xatlas page's neighbour may be another chart
+        aa = np.nonzero(contrast_texels(values @ LUMINANCE, valid, point, off, size, reach, float(contrast)))[0]
+        if len(aa):
+            m = np.searchsorted(off, aa, side="right") - 1
+            per = layout.per_triangle
+            pts, ok = sub_texel_points(bvh.arrays, corners, aa, owner, q_all, off[m], size[m], ttri, tback, point,
+                                       int(samples), float(INSET), lift,
+                                       layout.axis if per else np.zeros(1, np.int8),
+                                       layout.origin if per else np.zeros((1, 2)),
+                                       layout.texel if per else np.zeros(1), per)
+            n_sub = samples * samples
+            sub = shade(pts, np.repeat(normals[aa], n_sub, axis=0), ok)
+            n_ok = ok.reshape(-1, n_sub).sum(axis=1)
+            mean = sub.reshape(-1, n_sub, 3).sum(axis=1) / np.maximum(n_ok, 1)[:, None]
+            keep = n_ok > 0  # every sub-point hidden from the texel's own: its own value stays
+            values[aa[keep]] = mean[keep]
+    ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
+    cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
+    stats = TexelStats(float(cuts.mean()) if len(cuts) else 0.0, int(cuts.max(initial=0)), rays[0], int(len(cuts)),
+                       int(len(todo) - between.sum()), int(between.sum()), int(len(small)), int(len(aa)),
+                       int(samples))
+    return ts, stats
+
+
+def corner_points(layout, corners):
+    """The charts of sub-texel triangles (Charts.subtexel; none for xatlas
+    layouts, whose texels follow the surface's area, not its triangles) and
+    their shading points (m, 3, 3): each corner moved CORNER_IN of the way
+    towards the centroid (off the edge where a neighbouring surface may
+    meet it: the same reason as texels.INSET)."""
+    charts = layout.subtexel_charts()
+    if not len(charts):
+        return np.zeros(0, np.int64), np.zeros((0, 3, 3))
+    c = corners[layout.tri[charts]]
+    return charts, c + CORNER_IN * (c.mean(axis=1, keepdims=True) - c)
+
+
+def corner_values(layout, corners, charts, values_at_corners, point, off, values):
+    """Fills, in place, the texels of the sub-texel charts `charts` from the
+    values at their corner points (m, 3, 3): linear in the texel's point
+    over the triangle (barycentrics taken against the corner points,
+    extrapolated a little towards the true corners), never below 0.
+    Returns the texels filled."""
+    interpolate_corners(corners, layout.tri[charts], off[charts], layout.size[charts].astype(np.int64),
+                        np.ascontiguousarray(values_at_corners, np.float64), point, float(CORNER_IN), values)
+    size = layout.size[charts].astype(np.int64) ** 2
+    return np.repeat(off[charts] - np.cumsum(size) + size, size) + np.arange(int(size.sum()))
+
+
+def finish(layout, off, size, ttri, tback, point, covered, inside, values, found) -> TexelSet:
+    """Texels inside geometry next to a valid one take their valid
+    neighbours' mean (one ring: what bilinear filtering at the object's
+    outline reads), the other covered ones keep their own value, and the
+    texels around the triangles are filled from them (texels.py)."""
+    valid = covered & found & ~inside
+    values = np.where((covered & found)[:, None], values, 0.0)
+    filled = valid.copy()
+    fill(values, filled, off, size, 1, covered & found & inside)
+    filled |= covered & found  # deeper inside texels: their own value
+    fill(values, filled, off, size)
+    return TexelSet(layout, off, size, ttri, tback, point, covered, inside, values, filled)
+
+
+def atlas_for(scene, texels: TexelSet) -> Lightmaps:
+    emits = scene.emission.max(axis=1)[scene.material_ids] > 0
+    return texels.layout.pages(texels, emits)

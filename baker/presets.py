@@ -1,0 +1,127 @@
+"""The presets preview / default / high: one table of every setting a
+preset chooses (the voxel solver, lightcuts, the bake's texels), and the
+functions that turn a preset and a user's overrides into the frozen
+configurations of config.py. The command line's choices and help text are
+generated from this table."""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, fields, replace
+
+from .config import TEXEL_SOURCES, BakeConfig, LightcutsConfig, SolverConfig
+from .errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Preset:
+    """about: one line for --help; solver: the voxel solution; lightcuts:
+    quality frames and the VPLs (of the viewer's preview too); texels:
+    where a bake's texel values come from, 'voxels' (the voxel solution
+    reconstructed at each texel) or 'lightcuts'; texel_epsilon: the
+    lightcuts error bound of a bake's texels; texel_samples,
+    texel_contrast, texel_interpolate: the texels' anti-aliasing grid, what
+    counts as a sharp change, and adaptive shading's agreement
+    (config.BakeConfig)."""
+    name: str
+    about: str
+    solver: SolverConfig
+    lightcuts: LightcutsConfig
+    texels: str
+    texel_epsilon: float
+    texel_samples: int
+    texel_contrast: float
+    texel_interpolate: float
+
+
+# Tuned by bench/tradeoff.py and bench/bake_error.py (bench/results/): the preview shows the voxels themselves,
+# where smoothing the photons pays; default and high shade texels by lightcuts, where it made the Cornell box's
+# lightmaps brighter and worse. The default bake's texels take a tighter epsilon than its frames because a
+# lightmap is looked at for longer; its adaptive shading and coarser contrast keep its time near the preview's.
+PRESETS = {p.name: p for p in (
+    Preset("preview", "coarse voxels, texels from the voxel solution: seconds",
+           SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0, tolerance=1e-2,
+                        max_bounces=16),
+           LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
+           texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0),
+    Preset("default", "texels shaded by lightcuts over the voxels' VPLs, shadow edges anti-aliased",
+           SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-3,
+                        max_bounces=64),
+           LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
+           texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2),
+    Preset("high", "finer voxels, more photons, directions and VPLs; every texel shaded",
+           SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
+                        tolerance=1e-4, max_bounces=128),
+           LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
+           texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0),
+)}
+
+
+def preset(name: str) -> Preset:
+    """The preset of this name; ConfigError for an unknown one."""
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return PRESETS[name]
+
+
+def _overridden(base, overrides: dict, what: str):
+    """base with the given fields replaced (None values are left at
+    base's); an unknown field raises ConfigError with the nearest name."""
+    names = [f.name for f in fields(base)]
+    for key in overrides:
+        if key not in names:
+            near = difflib.get_close_matches(key, names, n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else f"; settings: {', '.join(names)}"
+            raise ConfigError(f"unknown {what} setting {key!r}{hint}")
+    return replace(base, **{k: v for k, v in overrides.items() if v is not None})
+
+
+def solver_config(name: str = "default", **overrides) -> SolverConfig:
+    """A preset's solver settings with the given fields replaced."""
+    return _overridden(preset(name).solver, overrides, "solver")
+
+
+def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
+    """A preset's lightcuts settings (of its frames) with the given fields
+    replaced."""
+    return _overridden(preset(name).lightcuts, overrides, "lightcuts")
+
+
+def bake_config(name="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
+                direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
+                texel_interpolate=None, **solver_overrides) -> BakeConfig:
+    """A preset's bake settings; every None takes the preset's value.
+    texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
+    bound; the rest as config.BakeConfig, solver_overrides as
+    solver_config."""
+    p = preset(name)
+    texels = texels or p.texels
+    if texels not in TEXEL_SOURCES:
+        raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
+    solver = solver_config(name, **solver_overrides)
+    texel_lightcuts = lightcuts_config(name, epsilon=epsilon if epsilon is not None else p.texel_epsilon,
+                                       direct_vpls=direct_vpls, seed=solver.seed)
+    if preview_vpls is None or preview_vpls < 0:
+        raise ConfigError(f"the preview's VPL count must be >= 0 (got {preview_vpls})")
+    return BakeConfig(
+        solver, uv, texel_density, name, texel_lightcuts if texels == "lightcuts" else None, int(preview_vpls),
+        int(texel_samples if texel_samples is not None else p.texel_samples),
+        float(texel_contrast if texel_contrast is not None else p.texel_contrast),
+        float(texel_interpolate if texel_interpolate is not None else p.texel_interpolate),
+        preview_lightcuts=lightcuts_config(name, seed=solver.seed))
+
+
+def help_table() -> str:
+    """The presets' values as --help shows them."""
+    rows = []
+    for p in PRESETS.values():
+        s, lc = p.solver, p.lightcuts
+        rows.append(f"  {p.name:<8} {p.about}\n"
+                    f"           surface cells {s.surface_cells:,}, radius {s.radius}, photons/voxel "
+                    f"{s.photons_per_voxel:g}, smoothing {s.photon_smoothing:g}, tolerance {s.tolerance:g}, "
+                    f"bounces <= {s.max_bounces}\n"
+                    f"           direct VPLs {lc.direct_vpls:,}, sky VPLs {lc.sky_vpls:,}, epsilon "
+                    f"{lc.epsilon:g}, cut <= {lc.cap:,}\n"
+                    f"           a bake's texels from {p.texels}"
+                    + (f" (epsilon {p.texel_epsilon:g}, {p.texel_samples}x{p.texel_samples} at edges, "
+                       f"interpolate {p.texel_interpolate:g})" if p.texels == "lightcuts" else ""))
+    return "presets:\n" + "\n".join(rows)
