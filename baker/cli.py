@@ -105,7 +105,7 @@ def cmd_render(args):
     from .presets import lightcuts_config, solver_config
     from .render import METHODS, RenderSettings, render_frame, write_image
     from .render.frame import SPP_CAP
-    from .scene import adjust_camera, build_scene_bvh, camera_for
+    from .scene import adjust_camera, camera_for, prepare
     from .startup import checkpoint
     from .stats import Stats
     _check_common(args, (".exr", ".png"))
@@ -126,11 +126,13 @@ def cmd_render(args):
             else:
                 scene = world = _load(args)
         with stats.stage("bvh"):
-            bvh = build_scene_bvh(world)
-        camera = adjust_camera(camera_for(world, args.camera, bvh), args.look_from, args.look_at, args.up, args.fov)
-        stats.count(triangles=len(world.triangles), bvh_nodes=bvh.node_count, width=args.width, height=args.height,
-                    camera=camera.name)
-        frame = render_frame(scene, camera, settings, stats, progress=True, bvh=bvh)
+            prepared = prepare(world)
+        camera = adjust_camera(camera_for(world, args.camera, prepared.bvh), args.look_from, args.look_at, args.up,
+                               args.fov)
+        stats.count(triangles=len(world.triangles), bvh_nodes=prepared.bvh.node_count, width=args.width,
+                    height=args.height, camera=camera.name)
+        frame = render_frame(scene if METHODS[args.method].bake else prepared, camera, settings, stats,
+                             progress=True, bvh=prepared.bvh, surfaces=prepared.surfaces)
     stats.count(**frame.counts)
     if frame.summary:
         print(frame.summary, file=sys.stderr)

@@ -100,7 +100,7 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
         for node in range(len(t)):
             if t.right[node] < 0:
                 continue
-            b = node_bound(tree, node, *p, *pn)
+            b = node_bound(tree, node, tuple(p), tuple(pn))
             leaves = leaves_of(t, node)
             assert b >= (lum[leaves] * g[leaves]).sum() * (1 - 1e-9), node
             d2 = (np.maximum(0, np.maximum(t.lo[node] - p, p - t.hi[node])) ** 2).sum()

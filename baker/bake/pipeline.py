@@ -62,7 +62,8 @@ class BakeResult:
 
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
                surfaces=None) -> BakeResult:
-    """Scene -> BakeResult, on config.solver.threads threads."""
+    """Scene (or a Prepared) -> BakeResult, on config.solver.threads
+    threads."""
     config = config or bake_config()
     stats = stats or Stats("bake")
     with threads(config.solver.threads):
@@ -108,14 +109,14 @@ def _meta(scene, config, solution, counts) -> dict:
 def _bake(scene, config, stats, progress, bvh, surfaces):
     from ..lightmap import atlas_for, layout_for, texel_size_for
     from ..lights import build_lights, ordered_vpls
-    from ..scene import build_scene_bvh, camera_for, pack
+    from ..scene import camera_for, prepare
     from ..solve import solve
     from ..startup import checkpoint
     from .mesh import baked_scene
     with stats.stage("bvh"):
-        bvh = bvh or build_scene_bvh(scene)
-        surfaces = surfaces or pack(scene)
-    solution = solve(scene, config.solver, stats=stats, bvh=bvh, surfaces=surfaces, progress=progress)
+        prepared = prepare(scene, bvh, surfaces)
+    scene, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
+    solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
     with stats.stage("charts"):
         charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)

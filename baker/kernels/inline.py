@@ -55,7 +55,7 @@ def _borrow(context, builder, ty, value):
 
 
 @intrinsic
-def borrowed(typingctx, x):
+def _borrowed(typingctx, x):
     """x (an array, or a tuple or namedtuple holding arrays) as views of the
     same memory that no reference count touches. Valid while the caller
     holds x."""
@@ -64,6 +64,8 @@ def borrowed(typingctx, x):
     return x(x), codegen
 
 
-if config.DISABLE_JIT:  # kernels run as Python (NUMBA_DISABLE_JIT=1): the array itself
-    def borrowed(x):  # noqa: F811
-        return x
+def _itself(x):
+    return x
+
+
+borrowed = _itself if config.DISABLE_JIT else _borrowed  # kernels run as Python (NUMBA_DISABLE_JIT=1): x itself

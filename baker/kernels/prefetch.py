@@ -13,7 +13,7 @@ from numba.extending import intrinsic
 
 
 @intrinsic
-def prefetch(typingctx, arr, idx):
+def _llvm_prefetch(typingctx, arr, idx):
     if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
         return None
     sig = types.void(arr, idx)
@@ -38,6 +38,9 @@ def prefetch(typingctx, arr, idx):
 
 
 
-if config.DISABLE_JIT:  # kernels run as Python (NUMBA_DISABLE_JIT=1: tests/test_clauses.py): a hint has nothing to do
-    def prefetch(arr, idx):  # noqa: F811
-        return None
+def _no_prefetch(arr, idx):
+    return None
+
+
+# kernels run as Python (NUMBA_DISABLE_JIT=1: tests/test_clauses.py): a hint has nothing to do there
+prefetch = _no_prefetch if config.DISABLE_JIT else _llvm_prefetch

@@ -58,7 +58,7 @@ def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
 
 
 @njit(cache=True)
-def patch_g(vpls, v, px, py, pz, nx, ny, nz):
+def patch_g(vpls, v, p, n):
     """The near field of VPL v at p: the form factor from p to its patch
     over the patch's area, F / A (irradiance = power x F / A = B F). The
     patch is the square of area A centred on v's position in its plane
@@ -66,6 +66,8 @@ def patch_g(vpls, v, px, py, pz, nx, ny, nz):
     clipped to p's upper half-space; F by Lambert's formula,
     |sum over its edges of angle x cos| / (2 pi): exact for any distance,
     B at a point the patch covers."""
+    px, py, pz = p
+    nx, ny, nz = n
     mx, my, mz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
     if abs(mx) >= abs(my) and abs(mx) >= abs(mz):
         ex, ey, ez = 0.0, 1.0, 0.0
@@ -121,7 +123,7 @@ def patch_g(vpls, v, px, py, pz, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
-def vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, shadows):
+def vpl_g(bvh, stack, vpls, v, p, n, offset, shadows):
     """The geometric factor of VPL v at p (visibility included when
     `shadows`): irradiance = power(v) x g. A VPL with a patch (vpls.patch[v] >
     0: a voxel's area) nearer than FAR x sqrt(A) takes its patch's exact
@@ -129,6 +131,8 @@ def vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, shadows):
     to FAR x sqrt(A): at a concave edge the point form of the next wall's
     voxels reads 20-45% low a quarter to half a voxel from it, the patches
     0.5-1% (tests/test_lights.py)."""
+    px, py, pz = p
+    nx, ny, nz = n
     if vpls.kind[v] == KIND_DIRECTIONAL:
         dx, dy, dz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
         cp = nx * dx + ny * dy + nz * dz
@@ -157,12 +161,12 @@ def vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, shadows):
     g = cl * cp / (math.pi * r2 + vpls.area[v])
     if r2 < FAR * FAR * vpls.patch[v]:   # the near field: over the VPL's patch, blended into the point form
         w = min(1.0, (FAR - r / math.sqrt(vpls.patch[v])) / (FAR - NEAR))
-        g = w * patch_g(vpls, v, px, py, pz, nx, ny, nz) + (1.0 - w) * g
+        g = w * patch_g(vpls, v, p, n) + (1.0 - w) * g
     return g
 
 
 @njit(cache=True, inline="always")
-def node_bound(tree, node, px, py, pz, nx, ny, nz):
+def node_bound(tree, node, p, n):
     """Upper bound of the luminance the node's VPLs give p (no visibility).
     tree.patch: the largest patch area (vpl_g's near field) under each
     node; within FAR x sqrt of it of the box a patch may lie nearer to p,
@@ -170,6 +174,8 @@ def node_bound(tree, node, px, py, pz, nx, ny, nz):
     is lum cos_p / (pi (d - R)^2), R the patch's half diagonal, cos_p from
     the box's height above p's plane plus R x the sine of the largest
     angle between p's normal and the node's normals."""
+    px, py, pz = p
+    nx, ny, nz = n
     lum = tree.lum[node]
     if lum <= 0.0:
         return 0.0
@@ -296,12 +302,14 @@ def scratch(cap):
 
 
 @njit(cache=True)
-def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, cap, heap_b, heap_n, heap_g):
+def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
     """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
-    shadow rays cast. heap_b, heap_n, heap_g: scratch of cap + 2 entries
-    (the cut's refinable nodes with their bound and representative's g)."""
+    shadow rays cast. p, n: the point and its unit normal (3-tuples);
+    heap: scratch (bound, node, g) of cap + 2 entries each (the cut's
+    refinable nodes with their bound and representative's g)."""
+    heap_b, heap_n, heap_g = heap
     root = 0
-    g = vpl_g(bvh, stack, vpls, tree.rep[root], px, py, pz, nx, ny, nz, offset, True)
+    g = vpl_g(bvh, stack, vpls, tree.rep[root], p, n, offset, True)
     rays = 1
     e0 = tree.power[root, 0] * g
     e1 = tree.power[root, 1] * g
@@ -311,7 +319,7 @@ def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, ca
     f0 = f1 = f2 = 0.0  # the cut's nodes that are final (leaves, nodes that cannot light p), summed once
     b = 0.0
     if tree.right[root] >= 0:
-        b = node_bound(tree, root, px, py, pz, nx, ny, nz)
+        b = node_bound(tree, root, p, n)
     if b > 0.0:
         size = _push(heap_b, heap_n, heap_g, size, b, root, g)
     else:
@@ -329,8 +337,7 @@ def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, ca
             if tree.rep[child] == tree.rep[node]:
                 gc = g
             else:
-                gc = vpl_g(bvh, stack, vpls, tree.rep[child], px, py, pz, nx, ny, nz,
-                           offset, True)
+                gc = vpl_g(bvh, stack, vpls, tree.rep[child], p, n, offset, True)
                 rays += 1
             e0 += tree.power[child, 0] * gc
             e1 += tree.power[child, 1] * gc
@@ -338,7 +345,7 @@ def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, ca
             cut += 1
             bc = 0.0
             if tree.right[child] >= 0:
-                bc = node_bound(tree, child, px, py, pz, nx, ny, nz)
+                bc = node_bound(tree, child, p, n)
             if bc > 0.0:
                 size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
             else:
@@ -355,11 +362,12 @@ def lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon, ca
 
 
 @njit(cache=True)
-def brute_force(bvh, stack, vpls, px, py, pz, nx, ny, nz, offset):
+def brute_force(bvh, stack, vpls, p, n, offset):
     """Irradiance (r, g, b) at p: every VPL, with visibility."""
+
     h0 = h1 = h2 = 0.0
     for v in range(vpls.kind.shape[0]):
-        g = vpl_g(bvh, stack, vpls, v, px, py, pz, nx, ny, nz, offset, True)
+        g = vpl_g(bvh, stack, vpls, v, p, n, offset, True)
         h0 += vpls.power[v, 0] * g
         h1 += vpls.power[v, 1] * g
         h2 += vpls.power[v, 2] * g
@@ -382,9 +390,7 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
     n_lights = surf.light_kind.shape[0]
     for ch in prange((n + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        heap_b = np.empty(cap + 2)
-        heap_n = np.empty(cap + 2, np.int64)
-        heap_g = np.empty(cap + 2)
+        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty(cap + 2))
         for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
             if not valid[k]:
                 continue
@@ -393,12 +399,12 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
             h0 = h1 = h2 = 0.0
             if vpls.kind.shape[0] > 0:
                 if brute:
-                    h0, h1, h2 = brute_force(bvh, stack, vpls, px, py, pz, nx, ny, nz, offset)
+                    h0, h1, h2 = brute_force(bvh, stack, vpls, (px, py, pz), (nx, ny, nz), offset)
                     cuts[k] = vpls.kind.shape[0]
                     rays[k] = vpls.kind.shape[0]
                 else:
-                    h0, h1, h2, c, r = lightcut(bvh, stack, tree, vpls, px, py, pz, nx, ny, nz, offset, epsilon,
-                                                cap, heap_b, heap_n, heap_g)
+                    h0, h1, h2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz), offset, epsilon,
+                                                cap, heap)
                     cuts[k] = c
                     rays[k] = r
             for i in range(n_lights):

@@ -18,14 +18,14 @@ def render(scene, camera=None, width=512, height=512, method="pathtrace", spp=64
     `solution`, or one solved here with `config`), 'lightcuts' (a quality
     frame over that solution's VPLs, `lightcuts` a LightcutsConfig,
     default: the default preset's), 'instant-radiosity', or 'lightmap'
-    (`scene` a Bake)."""
-    from ..scene import build_scene_bvh, camera_for
+    (`scene` a Bake). `scene` may be a Prepared (scene/prepared.py)."""
+    from ..scene import camera_for, prepare
     from ..scene.model import Camera
-    world = scene.scene if method == "lightmap" else scene
-    bvh = bvh or build_scene_bvh(world)
-    cam = camera if isinstance(camera, Camera) else camera_for(world, camera, bvh)
+    prepared = prepare(scene.scene if method == "lightmap" else scene, bvh, surfaces)
+    cam = camera if isinstance(camera, Camera) else camera_for(prepared.scene, camera, prepared.bvh)
     settings = RenderSettings(method, width, height, spp, seed, solver=config, lightcuts=lightcuts)
-    return render_frame(scene, cam, settings, bvh=bvh, surfaces=surfaces, solution=solution).image
+    return render_frame(scene if method == "lightmap" else prepared, cam, settings, bvh=prepared.bvh,
+                        surfaces=prepared.surfaces, solution=solution).image
 
 
 __all__ = ["METHODS", "Frame", "Method", "RenderSettings", "camera_array", "read_exr", "render", "render_frame",

@@ -93,25 +93,24 @@ class Frame:
 
 def render_frame(scene, camera, settings: RenderSettings, stats=None, progress=False, bvh=None, surfaces=None,
                  solution=None) -> Frame:
-    """The frame `settings` asks for of `scene` (a Scene, or a Bake for the
-    'lightmap' method) seen by `camera` (a Camera). stats: a Stats the
-    stages are timed into; progress: show progress bars; bvh, surfaces,
-    solution: reuse these instead of building them."""
-    from ..scene import build_scene_bvh, pack
+    """The frame `settings` asks for of `scene` (a Scene or a Prepared; a
+    Bake for the 'lightmap' method) seen by `camera` (a Camera). stats: a
+    Stats the stages are timed into; progress: show progress bars; bvh,
+    surfaces, solution: reuse these instead of building them."""
+    from ..scene import prepare
     from ..stats import Stats
     from .camera import camera_array
     stats = stats or Stats("render " + settings.method)
-    world = scene.scene if METHODS[settings.method].bake else scene
+    bake = scene if METHODS[settings.method].bake else None
     with stats.stage("bvh"):
-        bvh = bvh or build_scene_bvh(world)
-        surfaces = surfaces or pack(world)
+        prepared = prepare(bake.scene if bake is not None else scene, bvh, surfaces)
+    world, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
     if METHODS[settings.method].solves and solution is None:
         from ..presets import solver_config
         from ..solve import solve
-        solution = solve(world, settings.solver or solver_config(), stats=stats, bvh=bvh, surfaces=surfaces,
-                         progress=progress)
-    job = _Job(scene, camera, camera_array(camera, settings.width, settings.height), settings, stats, progress,
-               bvh, surfaces, solution)
+        solution = solve(prepared, settings.solver or solver_config(), stats=stats, progress=progress)
+    job = _Job(bake if bake is not None else world, camera, camera_array(camera, settings.width, settings.height),
+               settings, stats, progress, bvh, surfaces, solution)
     frame = _RENDERERS[settings.method](job)
     if not np.isfinite(frame.image).all() or frame.image.min() < 0:
         raise VoxgiError("internal error: non-finite or negative pixels (please report)", world.path)

@@ -17,8 +17,7 @@ import numpy as np
 
 from ..config import SolverConfig, threads
 from ..progress import bar
-from ..scene.bvh import build_scene_bvh
-from ..scene.surfaces import pack
+from ..scene.prepared import prepare
 from ..stats import Stats, release_freed_memory
 from ..voxels import Voxels, resolution_for, voxelize
 from .smoothing import pool_parents, smooth_photons
@@ -92,17 +91,17 @@ def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=N
 
 def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, surfaces=None, progress=False,
           keep_bounces=False) -> Solution:
-    """Scene -> Solution by photons and linear propagation (the cache
-    method), with config.threads worker threads (the process's setting is
-    put back after)."""
+    """Scene (or a Prepared: scene/prepared.py) -> Solution by photons and
+    linear propagation (the cache method), with config.threads worker
+    threads (the process's setting is put back after)."""
     with threads(config.threads):
         return _solve(scene, config, stats or Stats("solve"), bvh, surfaces, progress, keep_bounces)
 
 
 def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     with stats.stage("bvh"):
-        bvh = bvh or build_scene_bvh(scene)
-        surfaces = surfaces or pack(scene)
+        prepared = prepare(scene, bvh, surfaces)
+    scene, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
     with stats.stage("voxelize"):
         vox = voxelize(scene, resolution_for(scene, config), config.cell_size, config.memory_budget_mb, surfaces)
         release_freed_memory()
