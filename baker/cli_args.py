@@ -277,14 +277,20 @@ def _presets_epilog() -> str:
     return help_table()
 
 
-def build_parser():
-    ap = OneLineParser(
-        prog="voxbake", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
-        description="voxgi baker: global illumination by the linear voxel method, with a reference path tracer. "
-                    "It bakes lightmaps into glTF files (`voxbake bake`) and renders images.")
+def command_parser(prog, description, epilog):
+    """A command's parser (one-line errors, --version) and its subcommands."""
+    ap = OneLineParser(prog=prog, formatter_class=argparse.RawDescriptionHelpFormatter, epilog=epilog,
+                       description=description)
     ap.add_argument("--version", action="version", version="voxgi 0.1.0")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    return ap, sub
+
+
+def build_parser():
+    ap, sub = command_parser(
+        "voxbake", "voxgi baker: global illumination by the linear voxel method, with a reference path tracer. It "
+                   "bakes lightmaps into glTF files (`voxbake bake`) and renders images.", EPILOG)
     sub.add_parser("scenes", help="list the built-in scenes (usable by name wherever a scene file is asked)",
                    description="List the scenes shipped with voxgi; give a name instead of a file path.")
     p = sub.add_parser("info", help="print what a scene holds (triangles, materials, emitters, cameras, bounds)",

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from baker.startup import run
-from baker.cli_args import EXPOSURE, IMAGE_SIDE, OneLineParser, integer
+from baker.cli_args import EXPOSURE, IMAGE_SIDE, command_parser, integer
 from baker.errors import VoxgiError
 
 from .renderer import MODES
@@ -87,13 +87,9 @@ def cmd_glinfo(args):
 
 
 def build_parser():
-    ap = OneLineParser(
-        prog="voxview", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
-        description="voxgi viewer: walk through a baked scene (a .glb written by `voxbake bake`) in a window, or "
-                    "take snapshots of it without a display. `voxview BAKE.glb` is `voxview walk BAKE.glb`.")
-    ap.add_argument("--version", action="version", version="voxgi 0.1.0")
-    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
+    ap, sub = command_parser(
+        "voxview", "voxgi viewer: walk through a baked scene (a .glb written by `voxbake bake`) in a window, or take "
+                   "snapshots of it without a display. `voxview BAKE.glb` is `voxview walk BAKE.glb`.", EPILOG)
 
     p = sub.add_parser("walk", help="open a window and walk through the bake",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
