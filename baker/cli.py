@@ -100,22 +100,28 @@ def cmd_info(args):
     return 0
 
 
-def cmd_render(args):
-    from .config import threads
+def _render_settings(args):
+    """What `voxbake render` asks for, checked (render.RenderSettings)."""
     from .presets import lightcuts_config, solver_config
-    from .render import METHODS, RenderSettings, render_frame, write_image
+    from .render import RenderSettings
     from .render.frame import SPP_CAP
-    from .scene import adjust_camera, camera_for, prepare
-    from .startup import checkpoint
-    from .stats import Stats
-    _check_common(args, (".exr", ".png"))
     adaptive = args.time_limit is not None or args.noise is not None
     solver = _configs(args, "solver", lambda: solver_config(args.preset, **_solver_overrides(args)))
     lc = _configs(args, "lightcuts", lambda: lightcuts_config(args.preset, epsilon=args.epsilon,
                                                               direct_vpls=args.direct_vpls, seed=args.seed))
-    settings = RenderSettings(args.method, args.width, args.height, args.spp or (SPP_CAP if adaptive else 64),
-                              args.seed, args.time_limit, args.noise, solver, lc, args.vpls_per_frame, args.frames,
-                              args.ir_tolerance)
+    return RenderSettings(args.method, args.width, args.height, args.spp or (SPP_CAP if adaptive else 64), args.seed,
+                          args.time_limit, args.noise, solver, lc, args.vpls_per_frame, args.frames,
+                          args.ir_tolerance)
+
+
+def cmd_render(args):
+    from .config import threads
+    from .render import METHODS, render_frame, write_image
+    from .scene import adjust_camera, camera_for, prepare
+    from .startup import checkpoint
+    from .stats import Stats
+    _check_common(args, (".exr", ".png"))
+    settings = _render_settings(args)
     stats = Stats("render " + args.method)
     with threads(args.threads):
         with stats.stage("load"):

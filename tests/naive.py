@@ -326,3 +326,32 @@ def patch_irradiance(p, n, centre, normal, area):
         if sn > 0:
             total += np.arctan2(sn, dot(ua, uc)) * dot(n, w) / sn
     return abs(total) / (2 * np.pi * area)
+
+
+def line_inputs(voxels):
+    """What propagate_lines reads, derived from a Voxels on its own (not from
+    the sweeper it checks): centroids in grid coordinates and normals as
+    the kernel stores them (float32), the cutting planes in absolute grid
+    coordinates with each voxel's side, the two-sided sheets, the flat
+    voxels (the voxels stage's flat_voxels) and the edges of surfaces that
+    end inside their cell (voxels/edges.py)."""
+    from baker.voxels.edges import edge_planes
+    from baker.voxels.lookup import flat_voxels
+    from baker.voxels.tolerances import FLAT_COS, FLAT_PLANE, SMOOTH_COS
+    v = voxels
+    centroid = ((v.centroid - v.origin) / v.cell_size).astype(np.float32).astype(np.float64)
+    normal = np.asarray(v.normal, np.float32).astype(np.float64)
+    cut = np.zeros((len(v), 5))
+    rows = np.nonzero(v.cut_sign != 0)[0]
+    plane = v.cut_plane[rows].astype(np.float64)
+    cut[rows, :3] = plane[:, :3]
+    cut[rows, 3] = plane[:, 3] + (plane[:, :3] * v.cell[rows]).sum(axis=1)
+    cut[:, 4] = np.sign(v.cut_sign)
+    flat = flat_voxels(v.key, v.cell, v.centroid, v.normal, v.planar, v.dims, v.cell_size, SMOOTH_COS, FLAT_COS,
+                       FLAT_PLANE)
+    edge = np.zeros((len(v), 4))
+    edge_planes(v.cell, centroid.astype(np.float32).astype(np.float64), v.normal.astype(np.float64),
+                np.asarray(v.area, np.float64) / v.cell_size ** 2, (v.cut_sign == 0) & np.asarray(v.planar, bool),
+                edge)
+    return dict(centroid=centroid, normal=normal, cut=cut, sheet=np.asarray(v.two_sided, bool),
+                flat=np.asarray(flat, bool), edge=edge)

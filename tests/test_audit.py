@@ -8,7 +8,7 @@ from baker.solve.directions import direction_set
 from baker.solve.propagate import LineSweeper
 from baker.voxels import voxelize
 from scenes.generate import closed_box, furnace_box, furnace_obstacles, scan_room, thin_wall, two_rooms
-from tests.naive import propagate_lines
+from tests.naive import line_inputs, propagate_lines
 
 
 def test_discrete_sources_recover_the_voxel_seen(make_scene):
@@ -21,10 +21,11 @@ def test_discrete_sources_recover_the_voxel_seen(make_scene):
     src, sgn, s = discrete_sources(sw, d, f)
     one = (d.vectors[f:f + 1], d.axis[f:f + 1], d.unit[f:f + 1], d.solid_angle[f:f + 1] / np.pi)
     off = sw.offsets(d, 0, 2)[f:f + 1]
+    ref = line_inputs(v)
     for x in np.nonzero(s > 0)[0][:40]:
-        _, _, trace = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(float),
-                                      np.ones((len(v), 3)), *one, off, 1.0, trace=int(x), cut=sw.cut, sheet=sw.sheet,
-                                      flat=sw.flat, edge=sw.edge)
+        _, _, trace = propagate_lines(v.cell, np.zeros(3), ref["centroid"], ref["normal"], np.ones((len(v), 3)),
+                                      *one, off, 1.0, trace=int(x), cut=ref["cut"], sheet=ref["sheet"],
+                                      flat=ref["flat"], edge=ref["edge"])
         seen = [y for _, _, y in trace]
         assert (src[x] == -1 and not seen) or [src[x]] == seen
 

@@ -7,16 +7,18 @@ from baker.voxels import voxelize
 from baker.scene.gltf_write import GltfBuilder
 from scenes.generate import box, closed_box, cornell_box, furnace_box, furnace_obstacles, quad, thin_wall, two_rooms
 from tests.threads import same_for_any_thread_count
-from tests.naive import propagate_lines
+from tests.naive import line_inputs, propagate_lines
 
 
 def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     sw = sweeper or LineSweeper(v)
     fast = sw.gather(radiosity, dirs, offsets)
-    # the kernel works in cells: the same centroids (grid coordinates) for the reference
-    slow = propagate_lines(v.cell, np.zeros(3), sw.centroid, sw.normal.astype(np.float64), radiosity, dirs.vectors,
-                           dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, 1.0, cut=sw.cut, sheet=sw.sheet,
-                           flat=sw.flat, edge=sw.edge)
+    # the kernel works in cells: the reference reads the same voxels in grid coordinates, taken from the Voxels
+    # themselves, not from the sweeper it checks
+    ref = line_inputs(v)
+    slow = propagate_lines(v.cell, np.zeros(3), ref["centroid"], ref["normal"], radiosity, dirs.vectors, dirs.axis,
+                           dirs.unit, dirs.solid_angle / np.pi, offsets, 1.0, cut=ref["cut"], sheet=ref["sheet"],
+                           flat=ref["flat"], edge=ref["edge"])
     return fast, slow
 
 

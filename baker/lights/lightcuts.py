@@ -25,6 +25,7 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUM_B, LUM_G, LUM_R
+from ..kernels.inline import borrowed
 from ..kernels.traverse import any_hit
 from ..scene.surfaces import punctual_irradiance
 from .vpl import KIND_DIRECTIONAL
@@ -307,7 +308,9 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
     shadow rays cast. p, n: the point and its unit normal (3-tuples);
     heap: scratch (bound, node, g) of cap + 2 entries each (the cut's
     refinable nodes with their bound and representative's g)."""
-    heap_b, heap_n, heap_g = heap
+    # borrowed: the records' arrays read in the loop take no reference counts (kernels/inline.py)
+    bvh, stack, tree, vpls = borrowed(bvh), borrowed(stack), borrowed(tree), borrowed(vpls)
+    heap_b, heap_n, heap_g = borrowed(heap)
     root = 0
     g = vpl_g(bvh, stack, vpls, tree.rep[root], p, n, offset, True)
     rays = 1
@@ -364,7 +367,7 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
 @njit(cache=True)
 def brute_force(bvh, stack, vpls, p, n, offset):
     """Irradiance (r, g, b) at p: every VPL, with visibility."""
-
+    bvh, stack, vpls = borrowed(bvh), borrowed(stack), borrowed(vpls)
     h0 = h1 = h2 = 0.0
     for v in range(vpls.kind.shape[0]):
         g = vpl_g(bvh, stack, vpls, v, p, n, offset, True)
