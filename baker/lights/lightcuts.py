@@ -212,12 +212,15 @@ def node_bound(tree, node, p, n):
             return np.inf
         sn = 1.0
         cc = tree.cos[node]
-        if cc > -1.0:   # sin(angle(n, axis) + half angle), or 1 from a right angle on
+        if cc > -1.0:   # sin(angle(n, axis) + half angle) below a right angle, else 1
             ca = min(1.0, max(-1.0, nx * tree.axis[node, 0] + ny * tree.axis[node, 1] + nz * tree.axis[node, 2]))
             cc = min(1.0, cc)
             sa, sc = math.sqrt(1.0 - ca * ca), math.sqrt(1.0 - cc * cc)
-            if ca * cc - sa * sc > 0.0:
-                sn = min(1.0, sa * cc + ca * sc)
+            s_sum = sa * cc + ca * sc
+            # the sum lies in [0, 2 pi]: below a right angle when its cosine and its sine are both positive (a
+            # cone wider than a hemisphere, far from n, has a sum past 3 pi / 2: cosine positive, sine negative)
+            if ca * cc - sa * sc > 0.0 and s_sum > 0.0:
+                sn = min(1.0, s_sum)
         z = zmax + rr * sn
         if z <= 0.0:
             return 0.0
