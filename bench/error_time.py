@@ -38,7 +38,7 @@ def main():
     from baker.render import camera_array
     from baker.render.lightcuts_frame import render_lightcuts
     from baker.render.pathtrace import pathtrace
-    from baker.scene import build_scene_bvh, pack
+    from baker.scene import Prepared, build_scene_bvh, pack
     s = args.size
     summary = []
     for name in args.scenes.split(","):
@@ -50,7 +50,7 @@ def main():
             warm = baker.solve(scene, baker.solver_config("preview", resolution=8, photons=2000), bvh=bvh,
                                surfaces=surf)
             lc = lightcuts_config("preview")
-            render_lightcuts(bvh, surf, build_lights(scene, warm, surf, lc, bvh),
+            render_lightcuts(bvh, surf, build_lights(Prepared(scene, bvh, surf), warm, lc),
                              camera_array(camera_for(scene, None, bvh), 8, 8), 8, 8, lc.epsilon, lc.cap)
         ref, lamp, ref_noise, _ = cached_reference(name, scene, bvh, surf, cam, s, args.ref_spp)
         rows = []
@@ -68,7 +68,7 @@ def main():
             for eps in (0.05, 0.02, 0.01):
                 lc = lightcuts_config(preset, epsilon=eps)
                 t1 = time.perf_counter()
-                lights = build_lights(scene, sol, surf, lc, bvh)
+                lights = build_lights(Prepared(scene, bvh, surf), sol, lc)
                 img, st = render_lightcuts(bvh, surf, lights, cam, s, s, lc.epsilon, lc.cap)
                 t_frame = time.perf_counter() - t1
                 e = rel_rmse(img, ref, lamp, ref_noise)

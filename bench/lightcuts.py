@@ -29,7 +29,7 @@ def main():
     from baker.presets import lightcuts_config
     from baker.render import camera_array
     from baker.render.lightcuts_frame import render_lightcuts
-    from baker.scene import build_scene_bvh, pack
+    from baker.scene import Prepared, build_scene_bvh, pack
     scene = baker.load_scene("cornell_box")
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = baker.solve(scene, baker.solver_config("default"), bvh=bvh, surfaces=surf)
@@ -82,7 +82,7 @@ def main():
         t0 = time.perf_counter()
         sol2 = baker.solve(scene, baker.solver_config("default"), bvh=bvh, surfaces=surf)
         t1 = time.perf_counter()
-        lights = build_lights(scene, sol2, surf, lightcuts_config("default"), bvh)
+        lights = build_lights(Prepared(scene, bvh, surf), sol2, lightcuts_config("default"))
         t2 = time.perf_counter()
         img, st = render_lightcuts(bvh, surf, lights, camera_array(camera_for(scene, None), f, f), f, f)
         t3 = time.perf_counter()

@@ -334,14 +334,14 @@ def test_lightcuts_bake_matches_the_lightcuts_frame(cornell, tmp_path):
     from baker.render import camera_array
     from baker.render.compare import compare
     from baker.render.lightcuts_frame import render_lightcuts
-    from baker.scene import build_scene_bvh, pack
+    from baker.scene import Prepared, build_scene_bvh, pack
     config = bake_config("default", resolution=24, photons=100_000, direct_vpls=8192)
     bvh, surf = build_scene_bvh(cornell), pack(cornell)
     result = bake_scene(cornell, config, bvh=bvh, surfaces=surf)
     bake, sol = result.bake, result.solution
     write_bake(tmp_path / "c.glb", bake)
     shown = render_bake(read_bake(tmp_path / "c.glb"), 0, 64, 64)
-    lights = build_lights(cornell, sol, surf, config.lightcuts)
+    lights = build_lights(Prepared(cornell, bvh, surf), sol, config.lightcuts, on_surface=False)
     frame, _ = render_lightcuts(bvh, surf, lights, camera_array(camera_for(cornell, None), 64, 64), 64, 64,
                                 config.lightcuts.epsilon, config.lightcuts.cap)
     c = compare(shown, frame)

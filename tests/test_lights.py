@@ -8,7 +8,7 @@ from tests import naive
 from baker.presets import solver_config
 from baker.lights import KIND_AREA, KIND_DIRECTIONAL, VPLs, build_lights, build_tree, irradiance
 from baker.presets import lightcuts_config
-from baker.scene import build_scene_bvh, pack
+from baker.scene import Prepared, build_scene_bvh, pack
 from baker.solve import solve
 from baker.scene import camera_for
 
@@ -175,7 +175,8 @@ def test_representatives_follow_power():
 def cornell_lights(cornell):
     bvh, surf = build_scene_bvh(cornell), pack(cornell)
     sol = solve(cornell, solver_config("preview", resolution=24, photons=100_000), bvh=bvh, surfaces=surf)
-    lights = build_lights(cornell, sol, surf, lightcuts_config("default", direct_vpls=4096))
+    lights = build_lights(Prepared(cornell, bvh, surf), sol, lightcuts_config("default", direct_vpls=4096),
+                          on_surface=False)
     return cornell, bvh, surf, sol, lights
 
 
@@ -241,7 +242,7 @@ def test_point_light_over_a_plane(make_scene):
     scene = make_scene(b, "lights_point")
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = solve(scene, solver_config("preview", resolution=16, photons=20_000), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("preview"))
+    lights = build_lights(Prepared(scene, bvh, surf), sol, lightcuts_config("preview"), on_surface=False)
     r = np.linspace(0, 2.5, 11)
     pts = np.stack([r, np.zeros_like(r), np.zeros_like(r)], axis=1)
     nrm = np.tile([0.0, 1.0, 0.0], (len(r), 1))
@@ -264,7 +265,8 @@ def test_furnace_through_lightcuts(name):
     scene = load_scene(name)
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = solve(scene, solver_config("preview", resolution=24, photons=300_000), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("preview", direct_vpls=8192))
+    lights = build_lights(Prepared(scene, bvh, surf), sol, lightcuts_config("preview", direct_vpls=8192),
+                          on_surface=False)
     m = scene.materials[0]
     exact = float(np.pi * m.emission[0] / (1 - m.albedo[0]))
     v = sol.voxels
@@ -284,7 +286,7 @@ def test_leak_scene_dark_room_is_black(make_scene):
     scene = make_scene(two_rooms(), "lights_two_rooms")
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = solve(scene, solver_config("preview", resolution=32, photons=300_000, radius=5), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("preview"))
+    lights = build_lights(Prepared(scene, bvh, surf), sol, lightcuts_config("preview"), on_surface=False)
     v = sol.voxels
     dark = (v.centroid[:, 0] > 1.0 + 1e-6)
     lit = ~dark
@@ -318,7 +320,7 @@ def test_cornell_frame_against_the_path_tracer(cornell_lights):
     from baker.render.lightcuts_frame import render_lightcuts
     scene, bvh, surf, _, _ = cornell_lights
     sol = solve(scene, solver_config("default"), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("default"), bvh)
+    lights = build_lights(Prepared(scene, bvh, surf), sol, lightcuts_config("default"))
     s = 48
     img, stats = render_lightcuts(bvh, surf, lights, camera_array(camera_for(scene, None), s, s), s, s)
     ref = render(scene, 0, s, s, spp=1024, bvh=bvh, surfaces=surf)
@@ -433,7 +435,7 @@ def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
     scene = make_scene(b, "frame_shadow_edge")
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = solve(scene, solver_config("preview", resolution=16, photons=20_000), bvh=bvh, surfaces=surf)
-    lights = build_lights(scene, sol, surf, lightcuts_config("default"))
+    lights = build_lights(Prepared(scene, bvh, surf), sol, lightcuts_config("default"), on_surface=False)
     s = 32
     cam = camera_array(camera_for(scene, None), s, s)
     n = s * s
@@ -489,8 +491,8 @@ def test_voxel_vpls_under_a_curved_surface_are_put_on_it(make_scene):
     bvh, surf = build_scene_bvh(scene), pack(scene)
     sol = solve(scene, solver_config("preview", resolution=24, photons=100_000), bvh=bvh, surfaces=surf)
     cfg = lightcuts_config("preview")
-    plain = build_lights(scene, sol, surf, cfg).vpls
-    moved = build_lights(scene, sol, surf, cfg, bvh).vpls
+    plain = build_lights(Prepared(scene, bvh, surf), sol, cfg, on_surface=False).vpls
+    moved = build_lights(Prepared(scene, bvh, surf), sol, cfg).vpls
     for f in ("kind", "normal", "power", "area", "indirect"):
         assert np.array_equal(getattr(plain, f), getattr(moved, f))
     ind = np.nonzero(plain.indirect)[0]

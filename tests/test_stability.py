@@ -11,7 +11,7 @@ import pytest
 
 from baker import load_scene, render, solve, solver_config
 from baker.errors import BudgetError
-from baker.scene import build_scene_bvh, pack
+from baker.scene import build_scene_bvh, pack, prepare
 from baker.scene.model import make_camera
 from scenes.generate import GltfBuilder, box, furnace_box, quad
 
@@ -338,7 +338,7 @@ def test_only_punctual_lights_use_no_area_light_machinery(tmp_path, monkeypatch)
     sol = solve(scene, solver_config("preview", resolution=16))
     from baker.lights import build_lights
     from baker.presets import lightcuts_config
-    lights = build_lights(scene, sol, pack(scene), lightcuts_config("preview"))
+    lights = build_lights(prepare(scene), sol, lightcuts_config("preview"), on_surface=False)
     assert lights.vpls.counts()["vpls_direct"] == 0
     assert sol.radiosity.max() > 0 and np.isfinite(sol.radiosity).all()
 

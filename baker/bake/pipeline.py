@@ -70,7 +70,7 @@ def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = No
         return _bake(scene, config, stats, progress, bvh, surfaces)
 
 
-def _texels(scene, solution, bvh, surfaces, charts, config, stats, progress):
+def _texels(prepared, solution, charts, config, stats, progress):
     """(TexelSet, Lights or None, TexelStats or None, counts): the texel
     values of the preview tier (the voxel solution) or of lightcuts."""
     from ..lightmap import lightcuts_texels, preview_texels
@@ -78,16 +78,14 @@ def _texels(scene, solution, bvh, surfaces, charts, config, stats, progress):
     from ..progress import bar
     if config.lightcuts is None:
         with stats.stage("texels"), bar(1, "texels", "stage", progress) as b:
-            texels = preview_texels(scene, solution, bvh, surfaces, charts, config.solver.seed)
+            texels = preview_texels(prepared, solution, charts, config.solver.seed)
             b.update(1)
         return texels, None, None, {}
     lc = config.lightcuts
     with stats.stage("lights"):
-        lights = build_lights(scene, solution, surfaces, lc, bvh)
+        lights = build_lights(prepared, solution, lc)
     with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
-        texels, st = lightcuts_texels(scene, solution, bvh, surfaces, charts, lights, lc.epsilon, lc.cap,
-                                      config.solver.seed, b.update, config.texel_samples, config.texel_contrast,
-                                      config.texel_interpolate)
+        texels, st = lightcuts_texels(prepared, solution, charts, lights, config, b.update)
     return texels, lights, st, dict(lights.vpls.counts(), **asdict(st), epsilon=lc.epsilon, cut_cap=lc.cap)
 
 
@@ -115,13 +113,13 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     from .mesh import baked_scene
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
-    scene, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
+    scene = prepared.scene
     solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
     with stats.stage("charts"):
         charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
     checkpoint()
-    texels, lights, texel_stats, shading = _texels(scene, solution, bvh, surfaces, charts, config, stats, progress)
+    texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
     checkpoint()
@@ -134,13 +132,13 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     if config.preview_vpls > 0:
         with stats.stage("lights"):
             if lights is None:
-                lights = build_lights(scene, solution, surfaces, config.preview_lightcuts, bvh)
+                lights = build_lights(prepared, solution, config.preview_lightcuts)
             lo, hi = scene.bounds()
             ordered = ordered_vpls(lights.vpls, config.preview_vpls, 0.5 * float(np.linalg.norm(hi - lo)),
                                    config.solver.seed)
         counts["preview_vpls"] = len(ordered)  # (meta holds counts: the file records it too)
         stats.count(preview_vpls=len(ordered))
     if not scene.cameras:  # a viewer opens the bake at a camera: the automatic one that sees the scene
-        scene = replace(scene, cameras=(replace(camera_for(scene, None, bvh), name="auto"),))
+        scene = replace(scene, cameras=(replace(camera_for(scene, None, prepared.bvh), name="auto"),))
     bake = baked_scene(scene, charts, maps, meta, ordered)
     return BakeResult(bake, solution, texels, maps, lights, texel_stats, counts)

@@ -96,8 +96,9 @@ def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0):
     return layout.sample(corners, inset, bvh, lift)
 
 
-def preview_texels(scene, solution, bvh, surfaces, layout, seed=0) -> TexelSet:
+def preview_texels(prepared, solution, layout, seed=0) -> TexelSet:
     """The preview tier: texel values from the voxel solution."""
+    bvh, surfaces = prepared.bvh, prepared.surfaces
     vox = solution.voxels
     h = float(vox.cell_size)
     corners = surfaces.arrays.corners
@@ -136,8 +137,7 @@ def side_normals(corners, texel_tri, texel_back):
     return out
 
 
-def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.02, cap=1000, seed=0,
-                     progress=None, samples=1, contrast=AA_CONTRAST, interpolate=0.0) -> TexelSet:
+def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) -> tuple[TexelSet, TexelStats]:
     """The default and high tiers: each texel's irradiance by lightcuts over
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
@@ -155,9 +155,16 @@ def lightcuts_texels(scene, solution, bvh, surfaces, layout, lights, epsilon=0.0
     edge, a contact) take the mean of a samples x samples grid of points
     over their square instead (samples 1: off; texels.sub_texel_points;
     grid points beyond the triangle on a coplanar one that continues the
-    surface are taken there, not clamped onto the shared edge)."""
+    surface are taken there, not clamped onto the shared edge).
+
+    config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
+    seed, texel_samples as `samples`, texel_contrast as `contrast`,
+    texel_interpolate as `interpolate`)."""
     from ..lights import irradiance
     from ..startup import checkpoint
+    bvh, surfaces = prepared.bvh, prepared.surfaces
+    epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed
+    samples, contrast, interpolate = config.texel_samples, config.texel_contrast, config.texel_interpolate
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
     texel = layout.min_texel

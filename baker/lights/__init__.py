@@ -21,10 +21,13 @@ class Lights:
     tree: LightTree | None
 
 
-def build_lights(scene, solution, surfaces, config: LightcutsConfig, bvh=None) -> Lights:
-    """The VPLs and their tree. bvh: the scene's BVH (puts voxel VPLs that
-    lie just under their curved surface onto it: vpl.on_surface)."""
-    vpls = make_vpls(scene, solution, surfaces, config.direct_vpls, config.sky_vpls, config.seed, bvh)
+def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -> Lights:
+    """The VPLs and their tree for a Prepared scene and its voxel Solution.
+    on_surface: voxel VPLs that lie just under their curved surface move
+    onto it through the BVH (vpl.on_surface)."""
+    bvh = prepared.bvh if on_surface else None
+    vpls = make_vpls(prepared.scene, solution, prepared.surfaces, config.direct_vpls, config.sky_vpls, config.seed,
+                     bvh)
     return Lights(vpls, build_tree(vpls, config.seed) if len(vpls) else None)
 
 

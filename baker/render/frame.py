@@ -104,13 +104,13 @@ def render_frame(scene, camera, settings: RenderSettings, stats=None, progress=F
     bake = scene if METHODS[settings.method].bake else None
     with stats.stage("bvh"):
         prepared = prepare(bake.scene if bake is not None else scene, bvh, surfaces)
-    world, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
+    world = prepared.scene
     if METHODS[settings.method].solves and solution is None:
         from ..presets import solver_config
         from ..solve import solve
         solution = solve(prepared, settings.solver or solver_config(), stats=stats, progress=progress)
-    job = _Job(bake if bake is not None else world, camera, camera_array(camera, settings.width, settings.height),
-               settings, stats, progress, bvh, surfaces, solution)
+    job = _Job(bake if bake is not None else world, prepared, camera,
+               camera_array(camera, settings.width, settings.height), settings, stats, progress, solution)
     frame = _RENDERERS[settings.method](job)
     if not np.isfinite(frame.image).all() or frame.image.min() < 0:
         raise VoxgiError("internal error: non-finite or negative pixels (please report)", world.path)
@@ -119,15 +119,24 @@ def render_frame(scene, camera, settings: RenderSettings, stats=None, progress=F
 
 @dataclass(frozen=True)
 class _Job:
-    scene: object
+    """What a renderer reads: the source (the Scene, or the Bake for
+    'lightmap'), the Prepared scene, the camera and its packed array."""
+    source: object
+    prepared: object
     camera: object
     cam: np.ndarray
     settings: RenderSettings
     stats: object
     progress: bool
-    bvh: object
-    surfaces: object
     solution: object
+
+    @property
+    def bvh(self):
+        return self.prepared.bvh
+
+    @property
+    def surfaces(self):
+        return self.prepared.surfaces
 
 
 def _lights(job):
@@ -135,7 +144,7 @@ def _lights(job):
     from ..presets import lightcuts_config
     lc = job.settings.lightcuts or lightcuts_config()
     with job.stats.stage("lights"):
-        lights = build_lights(job.scene, job.solution, job.surfaces, lc, job.bvh)
+        lights = build_lights(job.prepared, job.solution, lc)
     job.stats.count(**lights.vpls.counts())
     return lc, lights
 
@@ -187,7 +196,7 @@ def _instant_radiosity(job) -> Frame:
     s = job.settings
     lc, lights = _lights(job)
     with job.stats.stage("lights"):
-        lo, hi = job.scene.bounds()
+        lo, hi = job.prepared.scene.bounds()
         order = ordered_vpls(lights.vpls, s.vpls_per_frame * s.frames, 0.5 * float(np.linalg.norm(hi - lo)), lc.seed)
     with job.stats.stage("instant_radiosity"), bar(s.frames, "instant radiosity", "frame", job.progress) as b:
         image, ir = render_instant_radiosity(job.bvh, job.surfaces, order, job.cam, s.width, s.height,
@@ -201,7 +210,7 @@ def _lightmap(job) -> Frame:
     from .lightmap_view import render_bake
     s = job.settings
     with job.stats.stage("lightmap_view"), bar(s.height, "lightmap view", "row", job.progress) as b:
-        image = render_bake(job.scene, job.camera, s.width, s.height, b.update, job.bvh)
+        image = render_bake(job.source, job.camera, s.width, s.height, b.update, job.bvh)
     return Frame(image)
 
 
