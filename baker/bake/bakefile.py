@@ -55,13 +55,18 @@ def _exr(page):
     return buf.getvalue()
 
 
-def _texture_png(tex):
+def _texture_png(tex, opacity=None):
+    """An albedo texture as an sRGB PNG; with its mask's alpha (h, w), RGBA
+    (alpha is stored linearly, as glTF reads it)."""
     from PIL import Image
 
     from ..render.images import linear_to_srgb
     q = np.clip(np.rint(linear_to_srgb(tex) * 255.0), 0, 255).astype(np.uint8)
+    if opacity is not None and opacity.shape == tex.shape[:2]:
+        a = np.clip(np.rint(opacity * 255.0), 0, 255).astype(np.uint8)
+        q = np.concatenate([q, a[..., None]], axis=2)
     buf = io.BytesIO()
-    Image.fromarray(q, "RGB").save(buf, format="PNG")
+    Image.fromarray(q, "RGBA" if q.shape[2] == 4 else "RGB").save(buf, format="PNG")
     return buf.getvalue()
 
 
@@ -81,7 +86,7 @@ def write_bake(path, bake: Bake, inputs=()):
     albedo_tex = {}
     for i, m in enumerate(scene.materials):
         if m.texture is not None and scene.uvs is not None:
-            albedo_tex[i] = b.texture(b.image(_texture_png(m.texture)), clamp=False)
+            albedo_tex[i] = b.texture(b.image(_texture_png(m.texture, m.opacity)), clamp=False)
     corners = scene.vertices.reshape(-1, 3, 3)
     normals = scene.normals.reshape(-1, 3, 3)
     uv0 = scene.uvs.reshape(-1, 3, 2) if scene.uvs is not None else np.zeros((len(corners), 3, 2), np.float32)
@@ -93,7 +98,8 @@ def write_bake(path, bake: Bake, inputs=()):
         m = scene.materials[mi]
         ext = {"MOZ_lightmap": {"index": page_tex[p], "texCoord": 1, "intensity": float(bake.page_scale[p])},
                EXTENSION: {"page": int(p), "material": int(mi)}}
-        mat = b.material(f"{m.name}@page{p}", m.albedo, m.emission, False, albedo_tex.get(mi), ext)
+        mat = b.material(f"{m.name}@page{p}", list(m.albedo) + [m.alpha], m.emission, False, albedo_tex.get(mi), ext,
+                         m.alpha_cutoff, m.transmission)
         t = np.asarray(tris)
         parts.append({"positions": corners[t], "normals": normals[t], "uv0": uv0[t], "uv1": bake.uv1[t],
                       "material": mat})

@@ -35,7 +35,19 @@ BVHArrays = namedtuple("BVHArrays", [
     "root_box",    # (6,) float64
     "tris",        # (nt, 9) float64 corners v0 v1 v2 in BVH order (float32 values)
     "tri_index",   # (nt,) int32 BVH order -> scene triangle
+    # what rays pass (traverse.py): PASS_* per triangle, and the tables its test reads
+    "tri_pass",    # (nt,) int8 PASS_OPAQUE | PASS_MASK (alpha-tested) | PASS_GLASS (thin, tinted)
+    "tri_mat",     # (nt,) int32 material of each triangle in BVH order
+    "tri_uv",      # (nt, 6) float64 texture coordinates of its corners (1 row when no triangle is masked)
+    "mask_offset",  # (nm,) int64 first texel of a material's alpha texture in mask_data (-1: none)
+    "mask_size",   # (nm, 2) int64 alpha texture width, height
+    "mask_alpha",  # (nm,) float64 the base colour's alpha factor
+    "mask_cutoff",  # (nm,) float64 alphaCutoff
+    "mask_data",   # (texels,) float32 alpha texels of every masked material
+    "glass_tint",  # (nm, 3) float64 transmittance t x base colour of thin glass
 ])
+
+PASS_OPAQUE, PASS_MASK, PASS_GLASS = 0, 1, 2
 
 # An 8-wide node's record: the eight children's boxes as structure of
 # arrays (lo x of children 0-7, lo y, lo z, hi x, hi y, hi z), then per

@@ -46,9 +46,11 @@ def rand01(seed, index, dim):
 # draws from, in one table so that two uses never share numbers by accident.
 # (Changing a value changes every result that depends on it.)
 STREAM_PHOTON_ROTATION = 0x5EED      # index; dims 0..7: the photons' Cranley-Patterson rotation (photons.py)
+STREAM_PHOTON_GLASS = 0x61A55         # seed (mixed with the photons' rotation); index the photon, dim its pane
 STREAM_LINE_OFFSETS = 7              # dims 7, 8: a family's line offsets mu, mu' ...
 LINE_OFFSET_BOUNCE_STRIDE = 1_000_003  # ... at index bounce * stride + family (propagate.py)
 STREAM_ROULETTE = 0xD1CE              # the path tracer's Russian roulette: seed mixed with pixel + this; index
-                                     # the sample, dim the depth (its other numbers: kernels/sobol.py groups)
+                                     # the sample, dim the depth (its other numbers: kernels/sobol.py groups);
+ROULETTE_GLASS_DIM = 1 << 20         # dims from here + depth: whether the path goes through thin glass
 STREAM_AUDIT_FAMILIES = 77           # index; dim i: the audit's i-th family (audit.py)
 STREAM_AUDIT_VOXELS = 1000           # index 1000 + family; dim i: the audit's i-th voxel of that family

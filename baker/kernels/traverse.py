@@ -10,12 +10,18 @@ take a caller-owned `stack` (int32, STACK_SIZE: the build keeps the tree
 shallower, kernels/bvh.py) so that nothing is allocated per ray. Triangles
 are hit from both sides (watertight test, float64 arithmetic); the caller
 decides what the back side means.
+
+What rays pass (bvh.tri_pass): a masked triangle's cut-out texels are not
+there for any query (cut_out); thin glass is a surface for closest_hit
+and any_hit (the caller decides: the path tracer and the photons go
+through it) and a filter for `transmittance`, the shadow query of the
+light paths, which multiplies the tints of the glass it crosses.
 """
 import numpy as np
 from numba import njit, prange
 from numba.cpython.unsafe.numbers import trailing_zeros
 
-from .bvh import STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDTH
+from .bvh import PASS_GLASS, PASS_MASK, STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDTH
 from .geometry import unit_cross
 
 
@@ -132,6 +138,26 @@ def _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, tmax):
     return m
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def cut_out(bvh, j, u, v):
+    """Is the hit (u, v) on masked BVH-order triangle j in a cut-out texel:
+    alpha factor x texture alpha (nearest texel, wrapped, as albedo_at)
+    below the material's cutoff?"""
+    m = bvh.tri_mat[j]
+    a = bvh.mask_alpha[m]
+    off = bvh.mask_offset[m]
+    if off >= 0:
+        uv = bvh.tri_uv
+        w0 = 1.0 - u - v
+        s = w0 * uv[j, 0] + u * uv[j, 2] + v * uv[j, 4]
+        t = w0 * uv[j, 1] + u * uv[j, 3] + v * uv[j, 5]
+        w, h = bvh.mask_size[m, 0], bvh.mask_size[m, 1]
+        x = int(np.floor((s - np.floor(s)) * w)) % w
+        y = int(np.floor((t - np.floor(t)) * h)) % h
+        a *= bvh.mask_data[off + y * w + x]
+    return a < bvh.mask_cutoff[m]
+
+
 @njit(cache=True, error_model="numpy")
 def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False):
     """First hit with t in (tmin, tmax): (t, bvh-order triangle j, u, v);
@@ -167,6 +193,8 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
                             nx, ny, nz = hit_normal(bvh, j)
                             if nx * dx + ny * dy + nz * dz > 0.0:
                                 continue
+                        if bvh.tri_pass[j] == PASS_MASK and cut_out(bvh, j, u, v):
+                            continue
                         best_t, best_j, best_u, best_v = th, j, u, v
                 continue
             t = _slab_slot(w, node, s, ox, oy, oz, ix, iy, iz, tmin, best_t)
@@ -217,6 +245,8 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
                 for j in range(c, c + n):
                     th, u, v = intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz)
                     if tmin < th < tmax:
+                        if bvh.tri_pass[j] == PASS_MASK and cut_out(bvh, j, u, v):
+                            continue
                         return True
             elif nxt < 0:
                 nxt = c
@@ -227,6 +257,65 @@ def any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
             node = nxt
         elif sp == 0:
             return False
+        else:
+            sp -= 1
+            node = stack[sp]
+
+
+@njit(cache=True, error_model="numpy")
+def transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax):
+    """(r, g, b) of the light that crosses (tmin, tmax): 0 where an opaque
+    surface lies on it, else the product of the glass tints it crosses (1
+    through nothing); cut-out texels pass. The traversal of any_hit, which
+    stops at the first opaque hit; through glass it visits every node the
+    ray meets."""
+    w, wi, root, tris = bvh.wide, bvh.wide_i, bvh.root_box, bvh.tris
+    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    kx, ky, kz, sx, sy, sz = ray_shear(dx, dy, dz)
+    unpermuted = (ox, oy, oz)
+    o = (unpermuted[kx], unpermuted[ky], unpermuted[kz])
+    tr, tg, tb = 1.0, 1.0, 1.0
+    seen0 = seen1 = seen2 = -np.inf   # the last glass crossings counted
+    if _slab(root, 0, ox, oy, oz, ix, iy, iz, tmin, tmax) == np.inf:
+        return tr, tg, tb
+    sp = 0
+    node = 0
+    while True:
+        m = _hit_mask(w, wi, node, ox, oy, oz, ix, iy, iz, tmin, tmax)
+        nxt = -1
+        while m:
+            s = trailing_zeros(m)
+            m &= m - 1
+            n = wi[node, WIDE_COUNT + s]
+            c = wi[node, WIDE_CHILD + s]
+            if n > 0:
+                for j in range(c, c + n):
+                    th, u, v = intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz)
+                    if tmin < th < tmax:
+                        kind = bvh.tri_pass[j]
+                        if kind == PASS_MASK and cut_out(bvh, j, u, v):
+                            continue
+                        if kind != PASS_GLASS:
+                            return 0.0, 0.0, 0.0
+                        # a ray through an edge the pane's triangles share hits each of them (watertight):
+                        # a crossing at the distance of one already counted is that same crossing
+                        tol = 1e-9 * max(th, 1e-9)
+                        if abs(th - seen0) <= tol or abs(th - seen1) <= tol or abs(th - seen2) <= tol:
+                            continue
+                        seen0, seen1, seen2 = th, seen0, seen1
+                        g = bvh.glass_tint[bvh.tri_mat[j]]
+                        tr, tg, tb = tr * g[0], tg * g[1], tb * g[2]
+                        if tr <= 0.0 and tg <= 0.0 and tb <= 0.0:
+                            return 0.0, 0.0, 0.0
+            elif nxt < 0:
+                nxt = c
+            else:
+                stack[sp] = c
+                sp += 1
+        if nxt >= 0:
+            node = nxt
+        elif sp == 0:
+            return tr, tg, tb
         else:
             sp -= 1
             node = stack[sp]
@@ -273,4 +362,17 @@ def any_hit_batch(bvh, origins, dirs, tmin, tmax):
         for i in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
             out[i] = any_hit(bvh, stack, origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1],
                              dirs[i, 2], tmin, tmax[i])
+    return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def transmittance_batch(bvh, origins, dirs, tmin, tmax):
+    """(n, 3) float64: the light that crosses (tmin, tmax[i]) (transmittance)."""
+    n = origins.shape[0]
+    out = np.empty((n, 3))
+    for c in prange((n + _CHUNK - 1) // _CHUNK):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for i in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+            out[i, 0], out[i, 1], out[i, 2] = transmittance(bvh, stack, origins[i, 0], origins[i, 1], origins[i, 2],
+                                                            dirs[i, 0], dirs[i, 1], dirs[i, 2], tmin, tmax[i])
     return out

@@ -26,7 +26,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUM_B, LUM_G, LUM_R
 from ..kernels.inline import borrowed
-from ..kernels.traverse import any_hit
+from ..kernels.traverse import transmittance
 from ..scene.surfaces import punctual_irradiance
 from .vpl import KIND_DIRECTIONAL
 
@@ -125,45 +125,48 @@ def patch_g(vpls, v, p, n):
 
 @njit(cache=True, inline="always")
 def vpl_g(bvh, stack, vpls, v, p, n, offset, shadows):
-    """The geometric factor of VPL v at p (visibility included when
-    `shadows`): irradiance = power(v) x g. A VPL with a patch (vpls.patch[v] >
-    0: a voxel's area) nearer than FAR x sqrt(A) takes its patch's exact
-    form factor (patch_g), blended into the bounded point form from NEAR
-    to FAR x sqrt(A): at a concave edge the point form of the next wall's
-    voxels reads 20-45% low a quarter to half a voxel from it, the patches
-    0.5-1% (tests/test_lights.py)."""
+    """The geometric factor (r, g, b) of VPL v at p, times the shadow ray's
+    transmittance when `shadows` (0 where blocked, the tint of the thin
+    glass it crosses): irradiance = power(v) x g. A VPL with a patch
+    (vpls.patch[v] > 0: a voxel's area) nearer than FAR x sqrt(A) takes its
+    patch's exact form factor (patch_g), blended into the bounded point
+    form from NEAR to FAR x sqrt(A): at a concave edge the point form of
+    the next wall's voxels reads 20-45% low a quarter to half a voxel from
+    it, the patches 0.5-1% (tests/test_lights.py)."""
     px, py, pz = p
     nx, ny, nz = n
+    tr, tg, tb = 1.0, 1.0, 1.0
     if vpls.kind[v] == KIND_DIRECTIONAL:
         dx, dy, dz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
         cp = nx * dx + ny * dy + nz * dz
         if cp <= COS_MIN:
-            return 0.0
-        if shadows and any_hit(bvh, stack, px + offset * nx, py + offset * ny, pz + offset * nz, dx, dy, dz, 0.0,
-                               np.inf):
-            return 0.0
-        return cp
+            return 0.0, 0.0, 0.0
+        if shadows:
+            tr, tg, tb = transmittance(bvh, stack, px + offset * nx, py + offset * ny, pz + offset * nz, dx, dy, dz,
+                                       0.0, np.inf)
+        return cp * tr, cp * tg, cp * tb
     dx, dy, dz = vpls.position[v, 0] - px, vpls.position[v, 1] - py, vpls.position[v, 2] - pz
     r2 = dx * dx + dy * dy + dz * dz
     if r2 <= 0.0:
-        return 0.0
+        return 0.0, 0.0, 0.0
     r = math.sqrt(r2)
     dx, dy, dz = dx / r, dy / r, dz / r
     cp = nx * dx + ny * dy + nz * dz
     cl = -(vpls.normal[v, 0] * dx + vpls.normal[v, 1] * dy + vpls.normal[v, 2] * dz)
     if cp <= COS_MIN or cl <= COS_MIN:
-        return 0.0
+        return 0.0, 0.0, 0.0
     if shadows:
         ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
         ex, ey, ez = vpls.position[v, 0] - ox, vpls.position[v, 1] - oy, vpls.position[v, 2] - oz
         d = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if any_hit(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d * (1.0 - SHADOW_EPS)):
-            return 0.0
+        tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d * (1.0 - SHADOW_EPS))
+        if tr <= 0.0 and tg <= 0.0 and tb <= 0.0:
+            return 0.0, 0.0, 0.0
     g = cl * cp / (math.pi * r2 + vpls.area[v])
     if r2 < FAR * FAR * vpls.patch[v]:   # the near field: over the VPL's patch, blended into the point form
         w = min(1.0, (FAR - r / math.sqrt(vpls.patch[v])) / (FAR - NEAR))
         g = w * patch_g(vpls, v, p, n) + (1.0 - w) * g
-    return g
+    return g * tr, g * tg, g * tb
 
 
 @njit(cache=True, inline="always")
@@ -265,13 +268,15 @@ def node_bound(tree, node, p, n):
 def _swap(heap_b, heap_n, heap_g, i, j):
     heap_b[i], heap_b[j] = heap_b[j], heap_b[i]
     heap_n[i], heap_n[j] = heap_n[j], heap_n[i]
-    heap_g[i], heap_g[j] = heap_g[j], heap_g[i]
+    for c in range(3):
+        heap_g[i, c], heap_g[j, c] = heap_g[j, c], heap_g[i, c]
 
 
 @njit(cache=True)
 def _push(heap_b, heap_n, heap_g, size, b, node, g):
     i = size
-    heap_b[i], heap_n[i], heap_g[i] = b, node, g
+    heap_b[i], heap_n[i] = b, node
+    heap_g[i, 0], heap_g[i, 1], heap_g[i, 2] = g
     while i > 0:
         p = (i - 1) // 2
         if heap_b[p] >= heap_b[i]:
@@ -283,7 +288,7 @@ def _push(heap_b, heap_n, heap_g, size, b, node, g):
 
 @njit(cache=True)
 def _pop(heap_b, heap_n, heap_g, size):
-    node, g = heap_n[0], heap_g[0]
+    node, g = heap_n[0], (heap_g[0, 0], heap_g[0, 1], heap_g[0, 2])
     size -= 1
     _swap(heap_b, heap_n, heap_g, 0, size)
     i = 0
@@ -302,7 +307,7 @@ def _pop(heap_b, heap_n, heap_g, size):
 
 def scratch(cap):
     """Per-thread scratch of a lightcut: a heap of at most cap + 2 nodes."""
-    return np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty(cap + 2)
+    return np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 3))
 
 
 @njit(cache=True)
@@ -310,16 +315,17 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
     """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
     shadow rays cast. p, n: the point and its unit normal (3-tuples);
     heap: scratch (bound, node, g) of cap + 2 entries each (the cut's
-    refinable nodes with their bound and representative's g)."""
+    refinable nodes with their bound and representative's g, 3 channels:
+    the tint of glass on its shadow ray)."""
     # borrowed: the records' arrays read in the loop take no reference counts (kernels/inline.py)
     bvh, stack, tree, vpls = borrowed(bvh), borrowed(stack), borrowed(tree), borrowed(vpls)
     heap_b, heap_n, heap_g = borrowed(heap)
     root = 0
     g = vpl_g(bvh, stack, vpls, tree.rep[root], p, n, offset, True)
     rays = 1
-    e0 = tree.power[root, 0] * g
-    e1 = tree.power[root, 1] * g
-    e2 = tree.power[root, 2] * g
+    e0 = tree.power[root, 0] * g[0]
+    e1 = tree.power[root, 1] * g[1]
+    e2 = tree.power[root, 2] * g[2]
     size = 0
     cut = 1
     f0 = f1 = f2 = 0.0  # the cut's nodes that are final (leaves, nodes that cannot light p), summed once
@@ -335,9 +341,9 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
         if heap_b[0] <= epsilon * est or cut >= cap:
             break
         node, g, size = _pop(heap_b, heap_n, heap_g, size)
-        e0 -= tree.power[node, 0] * g
-        e1 -= tree.power[node, 1] * g
-        e2 -= tree.power[node, 2] * g
+        e0 -= tree.power[node, 0] * g[0]
+        e1 -= tree.power[node, 1] * g[1]
+        e2 -= tree.power[node, 2] * g[2]
         cut -= 1
         for child in (node + 1, tree.right[node]):
             if tree.rep[child] == tree.rep[node]:
@@ -345,9 +351,9 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
             else:
                 gc = vpl_g(bvh, stack, vpls, tree.rep[child], p, n, offset, True)
                 rays += 1
-            e0 += tree.power[child, 0] * gc
-            e1 += tree.power[child, 1] * gc
-            e2 += tree.power[child, 2] * gc
+            e0 += tree.power[child, 0] * gc[0]
+            e1 += tree.power[child, 1] * gc[1]
+            e2 += tree.power[child, 2] * gc[2]
             cut += 1
             bc = 0.0
             if tree.right[child] >= 0:
@@ -355,15 +361,15 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
             if bc > 0.0:
                 size = _push(heap_b, heap_n, heap_g, size, bc, child, gc)
             else:
-                f0 += tree.power[child, 0] * gc
-                f1 += tree.power[child, 1] * gc
-                f2 += tree.power[child, 2] * gc
+                f0 += tree.power[child, 0] * gc[0]
+                f1 += tree.power[child, 1] * gc[1]
+                f2 += tree.power[child, 2] * gc[2]
     # the result summed afresh over the cut (the running estimate above subtracts: rounding would leave 1e-31
     # where every term is 0, and a dark room must stay exactly black)
     for i in range(size):
-        f0 += tree.power[heap_n[i], 0] * heap_g[i]
-        f1 += tree.power[heap_n[i], 1] * heap_g[i]
-        f2 += tree.power[heap_n[i], 2] * heap_g[i]
+        f0 += tree.power[heap_n[i], 0] * heap_g[i, 0]
+        f1 += tree.power[heap_n[i], 1] * heap_g[i, 1]
+        f2 += tree.power[heap_n[i], 2] * heap_g[i, 2]
     return f0, f1, f2, cut, rays
 
 
@@ -374,9 +380,9 @@ def brute_force(bvh, stack, vpls, p, n, offset):
     h0 = h1 = h2 = 0.0
     for v in range(vpls.kind.shape[0]):
         g = vpl_g(bvh, stack, vpls, v, p, n, offset, True)
-        h0 += vpls.power[v, 0] * g
-        h1 += vpls.power[v, 1] * g
-        h2 += vpls.power[v, 2] * g
+        h0 += vpls.power[v, 0] * g[0]
+        h1 += vpls.power[v, 1] * g[1]
+        h2 += vpls.power[v, 2] * g[2]
     return h0, h1, h2
 
 
@@ -396,7 +402,7 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
     n_lights = surf.light_kind.shape[0]
     for ch in prange((n + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty(cap + 2))
+        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 3)))
         for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
             if not valid[k]:
                 continue
@@ -419,10 +425,10 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
                     continue
                 rays[k] += 1
                 ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
-                if not any_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - SHADOW_EPS)):
-                    h0 += lr
-                    h1 += lg
-                    h2 += lb
+                tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - SHADOW_EPS))
+                h0 += lr * tr
+                h1 += lg * tg
+                h2 += lb * tb
             out[k, 0], out[k, 1], out[k, 2] = h0, h1, h2
     return out, cuts, rays
 

@@ -25,8 +25,8 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUMINANCE
-from ..kernels.traverse import closest_hit, hit_normal
-from ..scene.surfaces import albedo_at, sky_radiance
+from ..kernels.traverse import hit_normal
+from ..scene.surfaces import albedo_at, hit_past_glass, sky_radiance
 from .camera import primary_ray, subpixel
 
 AA = 4                 # the edge pixels' pattern: AA x AA
@@ -61,7 +61,9 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
     per_axis^2 pattern; per_axis 1: the centre): the shading point (n, 3),
     its normal towards the camera (n, 3), what it adds before lighting
     (emission or sky, (n, 3)), albedo (n, 3), shade (n,) bool, material
-    (n,) int32 (-1: background, -2: a one-sided back), depth (n,)."""
+    (n,) int32 (-1: background, -2: a one-sided back), depth (n,). Rays go
+    through thin glass the voxels leave out (hit_past_glass): what lies
+    behind it is tinted."""
     n = pix.shape[0]
     point = np.zeros((n, 3))
     normal = np.zeros((n, 3))
@@ -75,9 +77,10 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
         x, y = pix[i] % width, pix[i] // width
         fx, fy = subpixel(sub[i], per_axis)
         ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
-        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        t, j, u, v, gr, gg, gb = hit_past_glass(bvh, surf, stack, ox, oy, oz, dx, dy, dz)
         if j < 0:
-            base[i, 0], base[i, 1], base[i, 2] = sky_radiance(surf, dx, dy, dz)
+            sr, sg, sb = sky_radiance(surf, dx, dy, dz)
+            base[i, 0], base[i, 1], base[i, 2] = sr * gr, sg * gg, sb * gb
             continue
         tri = bvh.tri_index[j]
         m = surf.tri_material[tri]
@@ -91,8 +94,11 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
         mat[i] = m
         point[i, 0], point[i, 1], point[i, 2] = ox + t * dx, oy + t * dy, oz + t * dz
         normal[i, 0], normal[i, 1], normal[i, 2] = nx, ny, nz
-        base[i, 0], base[i, 1], base[i, 2] = surf.emission[m, 0], surf.emission[m, 1], surf.emission[m, 2]
-        albedo[i, 0], albedo[i, 1], albedo[i, 2] = albedo_at(surf, tri, u, v)
+        em = surf.emission
+        base[i, 0], base[i, 1], base[i, 2] = em[m, 0] * gr, em[m, 1] * gg, em[m, 2] * gb
+        ar, ag, ab = albedo_at(surf, tri, u, v)
+        k = 1.0 - surf.transmission[m]   # glass kept in the voxels shows its diffuse part
+        albedo[i, 0], albedo[i, 1], albedo[i, 2] = ar * k * gr, ag * k * gg, ab * k * gb
         shade[i] = True
     return point, normal, base, albedo, shade, mat, depth
 

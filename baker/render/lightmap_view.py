@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.traverse import closest_hit
+from ..scene.surfaces import hit_past_glass
 from .camera import camera_array, primary_ray, render_bands, subpixel
 from .voxelview import SUBPIXELS
 
@@ -86,7 +86,7 @@ def _rows(bvh, surf, uv1, page, pages_flat, size, cam, width, height, row0, row1
         for sub in range(SUBPIXELS * SUBPIXELS):
             fx, fy = subpixel(sub, SUBPIXELS)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
-            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf, True)
+            t, j, u, v, gr, gg, gb = hit_past_glass(bvh, surf, stack, ox, oy, oz, dx, dy, dz, True)
             if j < 0:
                 continue
             tri = bvh.tri_index[j]
@@ -96,9 +96,10 @@ def _rows(bvh, surf, uv1, page, pages_flat, size, cam, width, height, row0, row1
             h0, h1, h2 = bilinear(pages_flat, size, page[tri], lu, lv)
             a0, a1, a2 = albedo_bilinear(surf, tri, u, v)
             m = surf.tri_material[tri]
-            r0 += a0 * inv_pi * h0 + surf.emission[m, 0]
-            r1 += a1 * inv_pi * h1 + surf.emission[m, 1]
-            r2 += a2 * inv_pi * h2 + surf.emission[m, 2]
+            k = 1.0 - surf.transmission[m]   # glass kept in the voxels shows its diffuse part
+            r0 += (k * a0 * inv_pi * h0 + surf.emission[m, 0]) * gr
+            r1 += (k * a1 * inv_pi * h1 + surf.emission[m, 1]) * gg
+            r2 += (k * a2 * inv_pi * h2 + surf.emission[m, 2]) * gb
         out[y, x, 0] = r0 * w
         out[y, x, 1] = r1 * w
         out[y, x, 2] = r2 * w

@@ -32,10 +32,10 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUMINANCE
 from ..kernels.inline import borrowed, inlined
-from ..kernels.rng import STREAM_ROULETTE, mix64, rand01
+from ..kernels.rng import ROULETTE_GLASS_DIM, STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
 from ..kernels.sobol import sample4
-from ..kernels.traverse import any_hit, closest_hit
+from ..kernels.traverse import closest_hit, transmittance
 from ..scene.surfaces import albedo_at, emitter_point, punctual_irradiance, sky_radiance
 from .camera import primary_ray
 
@@ -46,7 +46,7 @@ RR_DEPTH = 5
 # The kernels a path vertex calls, inlined into the one loop that calls them
 # (kernels/inline.py: a call would pass the BVH's or the surface tables'
 # arrays one by one and count references to each)
-_closest_hit, _any_hit = inlined(closest_hit), inlined(any_hit)
+_closest_hit, _transmittance = inlined(closest_hit), inlined(transmittance)
 _albedo_at, _emitter_point, _punctual_irradiance = inlined(albedo_at), inlined(emitter_point), inlined(punctual_irradiance)
 _sky_radiance, _cosine_hemisphere = inlined(sky_radiance), inlined(cosine_hemisphere)
 
@@ -60,16 +60,21 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     direction together with the next vertex's emitter point, group k + 1:
     a direction and the light seen from where it leads are stratified
     jointly. Direct light at a vertex is one shadow query per light: the
-    emitter point first, then each punctual light (one any-hit call site,
-    so one inlined copy)."""
+    emitter point first, then each punctual light (one shadow-query call
+    site, so one inlined copy). Thin glass (transmission t): the path goes
+    straight through with probability t, tinted by the base colour factor
+    (the tint shadow rays take, traverse.transmittance), else the surface
+    is diffuse with its albedo."""
     tri_index = bvh.tri_index
     mat_of, emission, double, normal = surf.tri_material, surf.emission, surf.double_sided, surf.tri_normal
+    transmission = surf.transmission
     n_emitters = surf.emitters.shape[0]
     n_lights = surf.light_kind.shape[0]
     lr, lg, lb = 0.0, 0.0, 0.0
     tr, tg, tb = 1.0, 1.0, 1.0
     pdf_bsdf = 0.0  # 0: the camera ray (emission counts in full)
     saw_emitter = False
+    seg = 0.0  # the path's length since its last diffuse vertex (through glass): the emitter's MIS weight
     roulette = mix64(np.uint64(seed) ^ mix64(np.uint64(pixel) + np.uint64(STREAM_ROULETTE)))
     for depth in range(MAX_DEPTH):
         t, j, u, v = _closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
@@ -81,19 +86,28 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
             lb += tb * sb
             break
         tri = tri_index[j]
+        mat = mat_of[tri]
+        tt = transmission[mat]
+        if tt > 0.0 and (tt >= 1.0 or rand01(roulette, index, ROULETTE_GLASS_DIM + depth) < tt):
+            tr, tg, tb = tr * surf.albedo[mat, 0], tg * surf.albedo[mat, 1], tb * surf.albedo[mat, 2]
+            if tr <= 0.0 and tg <= 0.0 and tb <= 0.0:
+                break
+            ox, oy, oz = ox + (t + eps) * dx, oy + (t + eps) * dy, oz + (t + eps) * dz
+            seg += t + eps
+            continue
         nx, ny, nz = normal[tri, 0], normal[tri, 1], normal[tri, 2]
         cos_in = -(nx * dx + ny * dy + nz * dz)
-        mat = mat_of[tri]
         if cos_in < 0.0:
             if not double[mat]:
                 break  # the back of a one-sided surface absorbs
             nx, ny, nz, cos_in = -nx, -ny, -nz, -cos_in
         er, eg, eb = emission[mat, 0], emission[mat, 1], emission[mat, 2]
         if er > 0.0 or eg > 0.0 or eb > 0.0:
-            saw_emitter = saw_emitter or depth == 0
+            saw_emitter = saw_emitter or pdf_bsdf == 0.0
             w = 1.0
             if pdf_bsdf > 0.0 and n_emitters > 0:
-                pdf_light = surf.emitter_prob[tri] / surf.tri_area[tri] * t * t / max(cos_in, 1e-300)
+                r = seg + t
+                pdf_light = surf.emitter_prob[tri] / surf.tri_area[tri] * r * r / max(cos_in, 1e-300)
                 w = pdf_bsdf * pdf_bsdf / (pdf_bsdf * pdf_bsdf + pdf_light * pdf_light)
             lr += tr * er * w
             lg += tg * eg * w
@@ -138,16 +152,17 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
                 cr = tr * ar / math.pi * hr
                 cg = tg * ag / math.pi * hg
                 cb = tb * ab / math.pi * hb
-            if not _any_hit(bvh, stack, px, py, pz, wx, wy, wz, 0.0, reach):
-                lr += cr
-                lg += cg
-                lb += cb
+            sr, sg, sb = _transmittance(bvh, stack, px, py, pz, wx, wy, wz, 0.0, reach)
+            lr += cr * sr
+            lg += cg * sg
+            lb += cb * sb
         # continue the path: cosine sampling, f cos / pdf = albedo
         u1, u2, l1, l2 = sample4(seed, pixel, index, depth + 1)
         dx, dy, dz, cos = _cosine_hemisphere(u1, u2, nx, ny, nz)
         if cos <= 0.0:
             break
         pdf_bsdf = cos / math.pi
+        seg = 0.0
         tr, tg, tb = tr * ar, tg * ag, tb * ab
         ox, oy, oz = px, py, pz
         if depth + 1 >= RR_DEPTH:

@@ -5,9 +5,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.bvh import (LEAF_MAX, STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI, WIDE_LO, WIDE_RECORD, BVHArrays,
-                           build_bvh, WIDTH, collapse_wide, pack_nodes, reorder_triangles)
-from ..kernels.traverse import any_hit_batch, closest_hit_batch
+from ..kernels.bvh import (LEAF_MAX, PASS_GLASS, PASS_MASK, PASS_OPAQUE, STACK_SIZE, WIDE_CHILD, WIDE_COUNT, WIDE_HI,
+                           WIDE_LO, WIDE_RECORD, BVHArrays, build_bvh, WIDTH, collapse_wide, pack_nodes,
+                           reorder_triangles)
+from ..kernels.traverse import any_hit_batch, closest_hit_batch, transmittance_batch
 
 
 @dataclass(frozen=True)
@@ -21,10 +22,17 @@ class BVH:
     tri_index: np.ndarray   # (nt,) int32 BVH order -> scene triangle
     depth: int = 0          # the deepest node's level (root 0)
     wide: np.ndarray = None  # (nw, WIDE_RECORD) float32: the same tree 8-wide, what the traversal reads
+    passes: tuple = None    # what rays pass: the BVHArrays fields from tri_pass on (ray_passes)
 
     @property
     def arrays(self) -> BVHArrays:
-        return BVHArrays(self.wide, self.wide.view(np.int32), self.root_box, self.tris, self.tri_index)
+        return BVHArrays(self.wide, self.wide.view(np.int32), self.root_box, self.tris, self.tri_index,
+                         *self.passes)
+
+    @property
+    def passes_light(self) -> bool:
+        """Does any triangle let rays through (masked or glass)?"""
+        return bool(np.any(self.passes[0] != PASS_OPAQUE))
 
     @property
     def node_count(self) -> int:
@@ -39,6 +47,11 @@ class BVH:
         """Batch any hit: (n,) bool."""
         o, d, tm = _rays(origins, dirs, tmax)
         return any_hit_batch(self.arrays, o, d, float(tmin), tm)
+
+    def transmitted(self, origins, dirs, tmin=0.0, tmax=np.inf):
+        """Batch transmittance: (n, 3) float64 (kernels/traverse.transmittance)."""
+        o, d, tm = _rays(origins, dirs, tmax)
+        return transmittance_batch(self.arrays, o, d, float(tmin), tm)
 
 
 def _rays(origins, dirs, tmax):
@@ -81,7 +94,48 @@ def build(corners: np.ndarray, leaf_max: int = LEAF_MAX) -> BVH:
     child = pack_nodes(lo, hi, right, count)
     root = np.concatenate([lo[0], hi[0]]).astype(np.float64)
     return BVH(_outward32(child), root, right, first, count, reorder_triangles(corners, order),
-               order.astype(np.int32), int(depth), _wide(lo, hi, right, first, count))
+               order.astype(np.int32), int(depth), _wide(lo, hi, right, first, count), opaque(len(order)))
+
+
+def opaque(nt: int) -> tuple:
+    """The pass tables of triangles that are all opaque."""
+    return (np.zeros(nt, np.int8), np.zeros(nt, np.int32), np.zeros((1, 6)), np.full(1, -1, np.int64),
+            np.zeros((1, 2), np.int64), np.ones(1), np.zeros(1), np.zeros(1, np.float32), np.zeros((1, 3)))
+
+
+def ray_passes(scene, tri_index) -> tuple:
+    """The pass tables (BVHArrays' tri_pass .. glass_tint) of `scene`'s
+    triangles in BVH order (tri_index: BVH order -> scene triangle):
+    masked materials are alpha-tested at each hit (their alpha texture,
+    nearest texel, wrapped, as the albedo), thin glass tints what passes by
+    t x its base colour factor (a glass's texture does not tint)."""
+    mats = scene.materials
+    nm = max(len(mats), 1)
+    mat = scene.material_ids[tri_index].astype(np.int32)
+    masked = np.array([m.masked for m in mats] or [False])
+    glass = np.array([m.transmission > 0 for m in mats] or [False])
+    kind = np.where(masked[mat], PASS_MASK, np.where(glass[mat], PASS_GLASS, PASS_OPAQUE)).astype(np.int8)
+    offset, size = np.full(nm, -1, np.int64), np.zeros((nm, 2), np.int64)
+    alpha, cutoff = np.ones(nm), np.zeros(nm)
+    tint = np.zeros((nm, 3))
+    chunks, off = [], 0
+    for i, m in enumerate(mats):
+        tint[i] = m.transmission * np.asarray(m.albedo, np.float64)
+        if not m.masked:
+            continue
+        alpha[i], cutoff[i] = m.alpha, m.alpha_cutoff
+        if m.opacity is not None and scene.uvs is not None:
+            h, w = m.opacity.shape[:2]
+            offset[i], size[i] = off, (w, h)
+            chunks.append(np.ascontiguousarray(m.opacity, np.float32).reshape(-1))
+            off += w * h
+    uv = np.zeros((1, 6))
+    if (kind == PASS_MASK).any() and scene.uvs is not None:
+        uv = np.ascontiguousarray(scene.uvs[scene.triangles[tri_index]].reshape(-1, 6), np.float64)
+    elif (kind == PASS_MASK).any():   # no texture coordinates: the factor's alpha alone decides
+        uv = np.zeros((len(tri_index), 6))
+    data = np.concatenate(chunks) if chunks else np.zeros(1, np.float32)
+    return kind, mat, uv, offset, size, alpha, cutoff, data, tint
 
 
 def _wide(lo, hi, right, first, count):
@@ -103,4 +157,7 @@ def _wide(lo, hi, right, first, count):
 
 
 def build_scene_bvh(scene) -> BVH:
-    return build(scene.triangle_corners())
+    """The scene's BVH with its pass tables (ray_passes)."""
+    from dataclasses import replace
+    bvh = build(scene.triangle_corners())
+    return replace(bvh, passes=ray_passes(scene, bvh.tri_index))

@@ -184,11 +184,13 @@ def _world_nodes(doc, path):
         stack.extend((c, world, depth + 1) for c in reversed(children))
 
 
-def _texture(doc, bufs, tex_index, path, limits):
-    """(albedo array or None, note or None) of texture `tex_index`."""
+def _texture(doc, bufs, tex_index, path, limits, alpha=False):
+    """(albedo array or None, note or None) of texture `tex_index`; with
+    alpha, (albedo, alpha (h, w) or None, note)."""
     tex = _item(doc.textures, tex_index, "texture", path)
+    none = (None, None, None) if alpha else (None, None)
     if tex.source is None:
-        return None, None
+        return none
     img = _item(doc.images, tex.source, "image", path)
     what = f"image {tex.source}"
     if img.bufferView is not None:
@@ -204,12 +206,12 @@ def _texture(doc, bufs, tex_index, path, limits):
         target = resolve_reference(img.uri, path, f"{what} uri", limits, encoded=True)
         data = read_file(target, None, path, f"{what} uri {img.uri!r}")
     else:
-        return None, None
-    return decode_texture(data, what, path, limits)
+        return none
+    return decode_texture(data, what, path, limits, alpha)
 
 
 # material extensions whose effect a diffuse baker drops
-_IGNORED_EXTENSIONS = {"KHR_materials_transmission": "transmission", "KHR_materials_volume": "volume",
+_IGNORED_EXTENSIONS = {"KHR_materials_volume": "volume",
                        "KHR_materials_clearcoat": "clearcoat", "KHR_materials_sheen": "sheen",
                        "KHR_materials_specular": "specular", "KHR_materials_iridescence": "iridescence"}
 
@@ -217,14 +219,17 @@ _IGNORED_EXTENSIONS = {"KHR_materials_transmission": "transmission", "KHR_materi
 def ignored_terms(m) -> list:
     """What of glTF material m the diffuse baker ignores: metallic (the
     factor, 1 when unset, as the specification says), blended or masked
-    alpha, and the extensions above."""
+    alpha, a transmission texture (the factor is read) and the extensions
+    above."""
     out = []
     pbr = m.pbrMetallicRoughness
     metallic = 1.0 if pbr is None or pbr.metallicFactor is None else float(pbr.metallicFactor)
     if metallic > 0:
         out.append("metallic")
-    if m.alphaMode in ("BLEND", "MASK"):
-        out.append(f"alpha {m.alphaMode}")
+    if m.alphaMode == "BLEND":
+        out.append("alpha BLEND")
+    if ((m.extensions or {}).get("KHR_materials_transmission") or {}).get("transmissionTexture") is not None:
+        out.append("transmission texture")
     for ext, what in _IGNORED_EXTENSIONS.items():
         if ext in (m.extensions or {}):
             out.append(what)
@@ -307,19 +312,39 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
             strength = float(_finite([ext.get("emissiveStrength", 1.0)], f"material {i} emissiveStrength", path,
                                      1, 0.0)[0])
         emission = _finite(m.emissiveFactor or [0, 0, 0], f"material {i} emissiveFactor", path, 3, 0.0) * strength
-        tex = None
+        masked = m.alphaMode == "MASK"
+        tex = opacity = emit_tex = None
         if pbr and pbr.baseColorTexture is not None:
-            tex, note = _texture(doc, bufs, pbr.baseColorTexture.index, path, limits)
+            tex, opacity, note = _texture(doc, bufs, pbr.baseColorTexture.index, path, limits, alpha=True)
             if note:
                 notes.append(note)
+        if m.emissiveTexture is not None and emission.max() > 0:
+            emit_tex, note = _texture(doc, bufs, m.emissiveTexture.index, path, limits)
+            if note:
+                notes.append(note)
+        transmission = 0.0
+        ext = (m.extensions or {}).get("KHR_materials_transmission")
+        if isinstance(ext, dict):
+            transmission = float(_finite([ext.get("transmissionFactor", 0.0)], f"material {i} transmissionFactor",
+                                         path, 1, 0.0)[0])
+            if transmission > 1.0:
+                raise SceneError(f"material {i} transmissionFactor {transmission:g} is above 1", path)
+        factor = pbr.baseColorFactor if pbr and pbr.baseColorFactor else []
+        alpha = float(_finite(factor[3:4], f"material {i} baseColorFactor alpha", path, 1, 0.0)[0]) \
+            if isinstance(factor, list) and len(factor) > 3 else 1.0
+        cutoff = None
+        if masked:
+            cutoff = 0.5 if m.alphaCutoff is None else float(_finite([m.alphaCutoff], f"material {i} alphaCutoff",
+                                                                     path, 1, 0.0)[0])
         name = m.name if isinstance(m.name, str) and m.name else f"material_{i}"
-        materials.append(make_material(name, albedo, emission, bool(m.doubleSided), tex))
+        materials.append(make_material(name, albedo, emission, bool(m.doubleSided), tex, transmission, cutoff,
+                                       alpha, opacity if masked else None, emit_tex))
         for what in ignored_terms(m):
             ignored.setdefault(what, []).append(name)
     n_file_materials = len(materials)
     default_index = None
     verts, tris, mids, norms, uvs, uvs1 = [], [], [], [], [], []
-    has_normals = has_uvs = has_uvs1 = True
+    has_normals = has_uvs1 = True
     offset = 0
     cameras, lights = [], []
     light_defs = ((doc.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
@@ -408,8 +433,7 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
                     if len(uv) != len(pos):
                         raise SceneError(f"mesh {node.mesh}: {len(uv)} {slot} for {len(pos)} positions", path)
                     out.append(uv)
-                elif slot == "TEXCOORD_0":
-                    has_uvs = False
+                elif slot == "TEXCOORD_0":   # kept when another primitive has them (a textured one needs them)
                     uvs.append(np.zeros((len(pos), 2), np.float32))
                 else:
                     has_uvs1 = False
@@ -432,6 +456,7 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
     return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris),
                 material_ids=np.concatenate(mids),
                 materials=materials, normals=np.concatenate(norms) if has_normals and norms else None,
-                uvs=np.concatenate(uvs) if has_uvs and uvs else None, cameras=cameras, lights=lights,
+                uvs=np.concatenate(uvs) if any(p.attributes.TEXCOORD_0 is not None for me in doc.meshes or []
+                                                for p in me.primitives or []) and uvs else None, cameras=cameras, lights=lights,
                 uvs1=np.concatenate(uvs1) if has_uvs1 and uvs1 else None,
                 material_extensions=[dict(m.extensions or {}) for m in doc.materials or []])

@@ -96,22 +96,33 @@ class GltfBuilder:
         return len(self.doc.textures) - 1
 
     def material(self, name, albedo, emission=(0.0, 0.0, 0.0), double_sided=False, texture=None,
-                 extensions=None) -> int:
+                 extensions=None, alpha_cutoff=None, transmission=0.0, emissive_texture=None) -> int:
         """Lambertian material; `emission` is radiance (W m^-2 sr^-1), split
         into emissiveFactor (max 1) times KHR_materials_emissive_strength;
-        `texture` a base colour texture index (TEXCOORD_0); `extensions`
-        more material extensions {name: data} (each listed as used)."""
+        `texture` a base colour texture index (TEXCOORD_0; its alpha is the
+        mask's when `alpha_cutoff` is given: alphaMode MASK); albedo's
+        fourth value, if any, the base colour's alpha; `transmission` thin
+        glass (KHR_materials_transmission); `emissive_texture` a texture
+        index; `extensions` more material extensions {name: data} (each
+        listed as used)."""
         albedo = [float(a) for a in albedo]
+        alpha = albedo[3] if len(albedo) > 3 else 1.0
         emission = np.asarray(emission, float)
         strength = float(emission.max())
         mat = g.Material(
             name=name,
             pbrMetallicRoughness=g.PbrMetallicRoughness(
-                baseColorFactor=albedo[:3] + [1.0], metallicFactor=0.0, roughnessFactor=1.0),
+                baseColorFactor=albedo[:3] + [alpha], metallicFactor=0.0, roughnessFactor=1.0),
             doubleSided=bool(double_sided))
         if texture is not None:
             mat.pbrMetallicRoughness.baseColorTexture = g.TextureInfo(index=int(texture))
+        if alpha_cutoff is not None:
+            mat.alphaMode, mat.alphaCutoff = "MASK", float(alpha_cutoff)
+        if emissive_texture is not None:
+            mat.emissiveTexture = g.TextureInfo(index=int(emissive_texture))
         ext = dict(extensions or {})
+        if transmission > 0:
+            ext["KHR_materials_transmission"] = {"transmissionFactor": float(transmission)}
         if strength > 0:
             mat.emissiveFactor = (emission / strength).tolist()
             if strength != 1.0:

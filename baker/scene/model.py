@@ -45,16 +45,36 @@ UP = np.array([0.0, 1.0, 0.0])  # glTF's up axis: the sky's zenith
 
 @dataclass(frozen=True)
 class Material:
+    """A diffuse surface. Thin glass: `transmission` t of the light goes
+    straight through, tinted by the base colour (glTF
+    KHR_materials_transmission), the rest is diffuse: reflectance
+    (1 - t) albedo, transmittance t albedo. Alpha mask (glTF alphaMode
+    MASK): where alpha x opacity(uv) < alpha_cutoff the surface is not
+    there at all (light and rays pass the cut-out texels)."""
     name: str
     albedo: np.ndarray            # (3,) float32, linear base colour factor
     emission: np.ndarray          # (3,) float32, emitted radiance L_e
     double_sided: bool = False
     texture: np.ndarray | None = None   # (h, w, 3) float32 linear albedo, multiplied by `albedo`
+    transmission: float = 0.0     # thin-glass transmission factor in [0, 1]
+    alpha_cutoff: float | None = None   # masked: alpha below it is cut out; None: opaque
+    alpha: float = 1.0            # the base colour factor's alpha
+    opacity: np.ndarray | None = None   # (h, w) float32 texture alpha, multiplied by `alpha`
+    emission_texture: np.ndarray | None = None  # (h, w, 3) float32 linear, multiplied by `emission`
+
+    @property
+    def masked(self) -> bool:
+        return self.alpha_cutoff is not None
 
 
-def make_material(name, albedo=(0.8, 0.8, 0.8), emission=(0, 0, 0), double_sided=False, texture=None) -> Material:
+def make_material(name, albedo=(0.8, 0.8, 0.8), emission=(0, 0, 0), double_sided=False, texture=None,
+                  transmission=0.0, alpha_cutoff=None, alpha=1.0, opacity=None, emission_texture=None) -> Material:
+    t = float(transmission)
+    if not 0.0 <= t <= 1.0:
+        raise ValueError(f"transmission {t} outside [0, 1]")
     return Material(name, np.asarray(albedo, np.float32)[:3], np.asarray(emission, np.float32)[:3],
-                    bool(double_sided), texture)
+                    bool(double_sided), texture, t, None if alpha_cutoff is None else float(alpha_cutoff),
+                    float(alpha), opacity, emission_texture)
 
 
 @dataclass(frozen=True)
@@ -144,6 +164,11 @@ class Scene:
     def double_sided(self) -> np.ndarray:
         """(nm,) bool."""
         return np.array([m.double_sided for m in self.materials], np.bool_)
+
+    @property
+    def transmission(self) -> np.ndarray:
+        """(nm,) float64 thin-glass transmission factors."""
+        return np.array([m.transmission for m in self.materials], np.float64).reshape(-1)
 
     def triangle_corners(self) -> np.ndarray:
         """(nt, 3, 3) float64 corner positions."""

@@ -93,16 +93,22 @@ def ignored_terms(mtl: dict) -> dict:
         illum = d.get("illum", [2])
         if isinstance(illum, list) and illum and illum[0] >= 3:
             note("reflection/refraction (illum 3-10)", name)
-        dissolve = d.get("d", [1.0])
-        tr = d.get("Tr", [0.0])
-        transparent = (isinstance(dissolve, list) and dissolve and dissolve[0] < 1) or \
-                      (isinstance(tr, list) and tr and tr[0] > 0)
-        if transparent:
-            note("transparency (d, Tr, Ni)", name)
         pm = d.get("Pm", [0.0])
         if isinstance(pm, list) and pm and pm[0] > 0:
             note("metallic (Pm)", name)
     return out
+
+
+def mtl_transmission(d: dict) -> float:
+    """The thin-glass transmission factor of an MTL material: 1 - d (the
+    dissolve), else Tr (the transparency some exporters write instead),
+    clamped to [0, 1]; its tint is the diffuse colour (as glTF's base
+    colour tints transmitted light)."""
+    for key, flip in (("d", True), ("Tr", False)):
+        v = d.get(key)
+        if isinstance(v, list) and v and np.isfinite(v[0]):
+            return float(min(max(1.0 - v[0] if flip else v[0], 0.0), 1.0))
+    return 0.0
 
 
 def _find_libs(rest: str, path, limits: LoadLimits):
@@ -249,7 +255,8 @@ def read_obj(path, double_sided=True, limits: LoadLimits = LoadLimits()) -> dict
         kd = d.get("Kd", [0.8, 0.8, 0.8])
         ke = d.get("Ke", [0.0, 0.0, 0.0])
         materials.append(make_material(name, (kd * 3)[:3] if len(kd) == 1 else kd,
-                                       (ke * 3)[:3] if len(ke) == 1 else ke, double_sided, texture))
+                                       (ke * 3)[:3] if len(ke) == 1 else ke, double_sided, texture,
+                                       mtl_transmission(d)))
     used = {n: mtl[n] for n in mat_index if n in mtl}
     terms = ignored_terms(used)
     if terms:

@@ -23,18 +23,26 @@ from numba import njit
 
 from ..kernels.geometry import unit_cross
 from ..kernels.sampling import sample_cdf, triangle_point
+from ..kernels.traverse import closest_hit
 from .model import UP, LightKind
 
 # the kernels' names for model.LightKind's codes (plain ints: numba folds them as constants)
 LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_SKY = (
     int(LightKind.AREA), int(LightKind.POINT), int(LightKind.SPOT), int(LightKind.DIRECTIONAL), int(LightKind.SKY))
 SKY_NONE, SKY_HEMISPHERE, SKY_SPHERE = 0, 1, 2
+# Thin glass that lets at least this share of light through is left out of the voxels (their lines are
+# opaque or empty, not partly clear): photons go through it (tinted), and the light it would reflect,
+# (1 - t) albedo, is not propagated. Below it the glass is a voxel of reflectance (1 - t) albedo that
+# stops the lines. Shadow rays and the path tracer take the exact transmittance either way.
+VOXEL_PASS = 0.5
+MAX_PANES = 64   # panes of such glass a camera ray sees through
 
 SurfaceArrays = namedtuple("SurfaceArrays", [
     "tri_material",     # (nt,) int32 material of each triangle
     "albedo",           # (nm, 3) float64 albedo factor
     "emission",         # (nm, 3) float64 emitted radiance L_e
     "double_sided",     # (nm,) bool
+    "transmission",     # (nm,) float64 thin-glass transmission factor t (tint: t x albedo factor)
     "corners",          # (nt, 3, 3) float64 triangle corners
     "tri_area",         # (nt,) float64
     "tri_normal",       # (nt, 3) float64 unit normal, front by the winding (triangle_normal of corners)
@@ -101,7 +109,7 @@ def pack(scene) -> Surfaces:
     sky_mode = SKY_NONE if sky is None else (SKY_HEMISPHERE if sky.hemisphere else SKY_SPHERE)
     arrays = SurfaceArrays(
         tri_material=mids.astype(np.int32), albedo=scene.albedo.astype(np.float64), emission=emission,
-        double_sided=scene.double_sided, corners=np.ascontiguousarray(corners), tri_area=area,
+        double_sided=scene.double_sided, transmission=scene.transmission, corners=np.ascontiguousarray(corners), tri_area=area,
         tri_normal=_unit_normals(corners), emitters=emitters,
         emitter_cdf=cdf.astype(np.float64), emitter_prob=prob, tex_offset=tex_offset, tex_size=tex_size,
         tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
@@ -245,3 +253,25 @@ def sky_radiance(surf, wx, wy, wz):
 def sky_solid_angle(sky_mode: int) -> float:
     """Solid angle the sky covers, sr."""
     return {SKY_NONE: 0.0, SKY_HEMISPHERE: 2 * np.pi, SKY_SPHERE: 4 * np.pi}[sky_mode]
+
+
+@njit(cache=True, inline="always")
+def hit_past_glass(bvh, surf, stack, ox, oy, oz, dx, dy, dz, cull_back=False):
+    """The closest hit of a camera ray past the thin glass the voxels leave
+    out (t >= VOXEL_PASS): (t, j, u, v) as closest_hit, and the tint (r, g,
+    b) of the panes it went through (t x albedo factor each). The glass's
+    own diffuse part, (1 - t) albedo, is not shown (the bake and the
+    solution hold no light for it)."""
+    tr, tg, tb = 1.0, 1.0, 1.0
+    tmin = 0.0
+    for _ in range(MAX_PANES):
+        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, np.inf, cull_back)
+        if j < 0:
+            return t, j, u, v, tr, tg, tb
+        m = surf.tri_material[bvh.tri_index[j]]
+        tt = surf.transmission[m]
+        if tt < VOXEL_PASS:
+            return t, j, u, v, tr, tg, tb
+        tr, tg, tb = tr * tt * surf.albedo[m, 0], tg * tt * surf.albedo[m, 1], tb * tt * surf.albedo[m, 2]
+        tmin = t * (1.0 + 1e-9) + 1e-12
+    return np.inf, -1, 0.0, 0.0, 0.0, 0.0, 0.0

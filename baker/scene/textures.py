@@ -20,11 +20,13 @@ def image_to_albedo(img) -> np.ndarray:
     return srgb_to_linear(arr)
 
 
-def decode_texture(data: bytes, what: str, path, limits):
+def decode_texture(data: bytes, what: str, path, limits, alpha=False):
     """(h, w, 3) float32 linear albedo from encoded image bytes, and a note
     (or None) when it was scaled down to `limits.max_texture` on its longer
     side. The size in the image's header is checked against the memory
-    budget before a pixel is decoded."""
+    budget before a pixel is decoded. alpha: return (albedo, alpha (h, w)
+    float32 in [0, 1], stored linearly as glTF says; ones when the image
+    has none, note) instead."""
     from PIL import Image
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limits below decide
@@ -38,6 +40,9 @@ def decode_texture(data: bytes, what: str, path, limits):
                 img.thumbnail((limits.max_texture, limits.max_texture), Image.Resampling.BOX)
                 note = (f"{path}: {what} is {w}x{h} pixels; scaled down to {img.size[0]}x{img.size[1]} "
                         f"(--max-texture {limits.max_texture})")
+            if alpha:
+                a = np.asarray(img.convert("RGBA"), np.float32)[..., 3] / 255.0
+                return image_to_albedo(img), a, note
             return image_to_albedo(img), note
         except Image.DecompressionBombError:
             raise SceneError(f"{what}: an image of too many pixels to decode", path) from None

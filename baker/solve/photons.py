@@ -33,17 +33,18 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.rng import STREAM_PHOTON_ROTATION, rand01
+from ..kernels.rng import STREAM_PHOTON_GLASS, STREAM_PHOTON_ROTATION, rand01
 from ..kernels.sampling import cosine_hemisphere, frame, sample_cdf
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.model import LightKind
-from ..scene.surfaces import (LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, sample_emitter,
+from ..scene.surfaces import (VOXEL_PASS, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, sample_emitter,
                               sky_solid_angle, spot_falloff, triangle_normal)
 from ..voxels.lookup import voxel_of_hit
 
 BATCH = 1 << 18         # photons per batch (a progress step)
 GUIDE_CELLS = 64        # directional lights: G x G cells across the light
 GUIDE_FLOOR = 0.1       # share of a directional light's photons spread evenly over its disc
+MAX_GLASS = 64          # panes a photon goes through before it is dropped
 PILOT_SHARE = 1 / 16    # pilot photons, as a share of the photon count (directional lights only)
 
 
@@ -149,8 +150,13 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, i0, i1, n, r
     their row per entry. Returns, per photon: hit point (m, 3), power
     (m, 3), ok (m,) (False: escaped or absorbed by a one-sided back), the
     triangle hit and whether its back, the guide cell it left from (-1:
-    not a sun) and its light's entry."""
+    not a sun) and its light's entry. Thin glass (transmission t): the
+    photon goes through glass the voxels leave out (t >= VOXEL_PASS)
+    tinted by t x albedo; at glass that is a voxel it lands with
+    probability 1 - t (power / (1 - t): the glass's irradiance) and else
+    goes through tinted by its albedo."""
     m = i1 - i0
+    glass_key = np.uint64(rot[0] * 9007199254740992.0) ^ np.uint64(STREAM_PHOTON_GLASS)
     point = np.zeros((m, 3))
     power = np.zeros((m, 3))
     ok = np.zeros(m, np.bool_)
@@ -177,7 +183,23 @@ def shoot(bvh, surf, light_cdf, light_kind, light_ref, light_power, i0, i1, n, r
             f = 1.0 / (p_sel * n)
             pr, pg, pb = pr * f, pg * f, pb * f
             th, jh, uh, vh = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
-            if jh < 0:
+            passes = 0
+            while jh >= 0 and passes < MAX_GLASS:   # thin glass: through it, tinted
+                gm = surf.tri_material[bvh.tri_index[jh]]
+                tt = surf.transmission[gm]
+                if tt <= 0.0:
+                    break
+                if tt < VOXEL_PASS:   # a voxel: it lands there with probability 1 - t, else goes through
+                    if rand01(glass_key, i, passes) >= tt:
+                        f = 1.0 / (1.0 - tt)
+                        pr, pg, pb = pr * f, pg * f, pb * f
+                        break
+                    tt = 1.0
+                pr, pg, pb = pr * tt * surf.albedo[gm, 0], pg * tt * surf.albedo[gm, 1], pb * tt * surf.albedo[gm, 2]
+                ox, oy, oz = ox + (th + eps) * dx, oy + (th + eps) * dy, oz + (th + eps) * dz
+                th, jh, uh, vh = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+                passes += 1
+            if jh < 0 or passes == MAX_GLASS or (pr <= 0.0 and pg <= 0.0 and pb <= 0.0):
                 continue
             tri_h = bvh.tri_index[jh]
             hx, hy, hz = hit_normal(bvh, jh)

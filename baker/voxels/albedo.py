@@ -1,23 +1,41 @@
 """Texture-aware albedo of a piece: the base-colour texture averaged over
-the piece, not one sample (docs/design.md section 2)."""
+the piece, not one sample (docs/design.md section 2); for a masked
+material, over the piece's points that are not cut out, and the share of
+them that are not (its coverage)."""
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit, prange
 
+from ..kernels.bvh import PASS_MASK
+from ..kernels.traverse import cut_out
 from ..scene.surfaces import albedo_at
 from .clip import side_axis
 
+# traverse.cut_out's tables in scene triangle order (scene/bvh.ray_passes with the identity order)
+MaskArrays = namedtuple("MaskArrays", ["tri_pass", "tri_mat", "tri_uv", "mask_offset", "mask_size", "mask_alpha",
+                                       "mask_cutoff", "mask_data"])
+
+
+def mask_arrays(scene) -> MaskArrays:
+    from ..scene.bvh import ray_passes
+    return MaskArrays(*ray_passes(scene, np.arange(len(scene.triangles)))[:8])
+
+
 @njit(cache=True, parallel=True)
-def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
-    """Albedo of each piece averaged over the piece (docs/design.md section 2:
-    texture-aware, not one sample): samples^2 points of the R2 low-
-    discrepancy sequence (Roberts 2018; a regular grid aliases with regular
-    textures) over the cell's face across the triangle's dominant axis,
-    projected on the triangle's plane, keeping the points inside both the
-    triangle and the cell."""
+def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samples):
+    """Albedo (n, 3) of each piece averaged over the piece (docs/design.md
+    section 2: texture-aware, not one sample), and its coverage (n,): the
+    share of its points a mask does not cut out (the albedo is the mean
+    over the points that are not).
+    samples^2 points of the R2 low-discrepancy sequence (Roberts 2018; a
+    regular grid aliases with regular textures) over the cell's face
+    across the triangle's dominant axis, projected on the triangle's
+    plane, keeping the points inside both the triangle and the cell."""
     n = piece_tri.shape[0]
     out = np.zeros((n, 3))
+    coverage = np.ones(n)
     for p in prange(n):
         t = piece_tri[p]
         v0 = corners[t, 0]
@@ -33,6 +51,8 @@ def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
         det = a11 * a22 - a12 * a21
         sr = sg = sb = 0.0
         cnt = 0
+        hold = 0
+        masked = masks.tri_pass[t] == PASS_MASK
         for si in range(samples * samples):
             ra = 0.5 + si * 0.7548776662466927
             rb = 0.5 + si * 0.5698402909980532
@@ -50,13 +70,21 @@ def textured_albedo(surf, corners, piece_tri, piece_cell, origin, h, samples):
             b2 = (a11 * rj - a21 * ri) / det
             if b1 < 0.0 or b2 < 0.0 or b1 + b2 > 1.0:
                 continue
+            cnt += 1
+            if masked and cut_out(masks, t, b1, b2):
+                continue
             r, g, b = albedo_at(surf, t, b1, b2)
             sr += r
             sg += g
             sb += b
-            cnt += 1
+            hold += 1
         if cnt == 0:  # a sliver between the sample points: the triangle's centre
-            r, g, b = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
-            sr, sg, sb, cnt = r, g, b, 1
-        out[p, 0], out[p, 1], out[p, 2] = sr / cnt, sg / cnt, sb / cnt
-    return out
+            cnt = 1
+            if not (masked and cut_out(masks, t, 1.0 / 3.0, 1.0 / 3.0)):
+                sr, sg, sb = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
+                hold = 1
+        if hold == 0:  # all cut out (the piece is left out of the voxels): the centre's albedo
+            sr, sg, sb = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
+        out[p, 0], out[p, 1], out[p, 2] = sr / max(hold, 1), sg / max(hold, 1), sb / max(hold, 1)
+        coverage[p] = hold / cnt
+    return out, coverage

@@ -14,6 +14,8 @@ area / h^2, never the bounding volume. The supercover of every triangle
    (`check_budget`, an O(triangles) lower bound first);
 3. clip: every triangle side clipped to every cell its plane crosses
    (`clip_sides`);
+3b. passing: pieces light mostly goes through (thin glass, mostly
+   cut-out masked pieces) are left out (`drop_passing`);
 4. patches: the pieces of a cell that belong to one smooth surface
    (`find_patches`, patches.py): a patch never cuts, separates or splits
    itself in the next steps;
@@ -38,7 +40,7 @@ import numpy as np
 
 from ..errors import BudgetError
 from ..startup import checkpoint
-from .albedo import textured_albedo
+from .albedo import mask_arrays, textured_albedo
 from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separating_planes, side_signatures,
                     split_pieces)
 from .clip import clip_pieces, count_candidates
@@ -189,7 +191,9 @@ def surface_resolution(scene, surface_cells: int) -> int:
     corners = scene.triangle_corners()
     if extent <= 0 or not len(corners):
         return 1
+    from ..scene.surfaces import VOXEL_PASS
     sides_tri, _ = _sides(scene)
+    sides_tri = sides_tri[scene.transmission[scene.material_ids[sides_tri]] < VOXEL_PASS]  # glass makes no voxels
     cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     projected = float(0.5 * np.abs(cross).max(axis=1)[sides_tri].sum())  # in scene units^2
     if projected <= 0:
@@ -266,6 +270,35 @@ def clip_sides(corners, sides_tri, sides_sign, grid: Grid, counts) -> Pieces:
                 side)
     keep = area > MIN_PIECE_AREA
     return Pieces(cell[keep], area[keep], cen[keep], nrm[keep], side[keep])
+
+
+def drop_passing(pieces: Pieces, piece_tri, scene, grid: Grid, surfaces=None) -> Pieces:
+    """Step 3b: the pieces light mostly goes through are left out: thin
+    glass with t >= VOXEL_PASS and masked pieces less than half covered
+    (their coverage from the alpha test at the albedo's sample points).
+    A voxel's line is either stopped or clear; these surfaces let through
+    more than they stop. A masked piece that stays keeps its coverage as
+    its area (it reflects from its covered part only; photons land there
+    only)."""
+    from ..scene.surfaces import VOXEL_PASS, pack
+    mats = scene.material_ids[piece_tri]
+    drop = scene.transmission[mats] >= VOXEL_PASS
+    masked = np.array([m.masked for m in scene.materials])[mats]
+    if masked.any():
+        sel = np.nonzero(masked & ~drop)[0]
+        surf = surfaces or pack(scene)
+        _, cover = textured_albedo(surf.arrays, mask_arrays(scene), scene.triangle_corners(),
+                                   piece_tri[sel].astype(np.int32), pieces.cell[sel].astype(np.int64), grid.origin,
+                                   grid.h, 4)
+        drop[sel] = cover < 1.0 - VOXEL_PASS
+        scale = np.ones(len(pieces.area))
+        scale[sel] = cover
+        pieces = Pieces(pieces.cell, pieces.area * scale, pieces.centroid * scale[:, None], pieces.normal,
+                        pieces.side)
+    if not drop.any():
+        return pieces
+    keep = ~drop
+    return Pieces(pieces.cell[keep], pieces.area[keep], pieces.centroid[keep], pieces.normal[keep], pieces.side[keep])
 
 
 def find_patches(pieces: Pieces, piece_tri, scene, grid: Grid) -> Pieces:
@@ -412,14 +445,17 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
     cen = per_voxel(pieces.centroid)
     nrm = per_voxel(pieces.normal * pieces.area[:, None])
     mats = scene.material_ids[tri]
-    textured = np.array([m.texture is not None for m in scene.materials]) & (scene.uvs is not None)
-    p_alb = scene.albedo.astype(np.float64)[mats]
+    textured = (np.array([m.texture is not None for m in scene.materials]) & (scene.uvs is not None)) | \
+        np.array([m.masked for m in scene.materials])
+    # thin glass kept in the voxels (t < VOXEL_PASS) reflects what it does not transmit
+    p_alb = scene.albedo.astype(np.float64)[mats] * (1.0 - scene.transmission[mats])[:, None]
     if textured[mats].any():
         from ..scene.surfaces import pack
         surf = surfaces or pack(scene)
         sel = np.nonzero(textured[mats])[0]
-        p_alb[sel] = textured_albedo(surf.arrays, corners, tri[sel].astype(np.int32),
-                                     pieces.cell[sel].astype(np.int64), grid.origin, grid.h, 4)
+        alb, _ = textured_albedo(surf.arrays, mask_arrays(scene), corners, tri[sel].astype(np.int32),
+                                 pieces.cell[sel].astype(np.int64), grid.origin, grid.h, 4)
+        p_alb[sel] = alb * (1.0 - scene.transmission[mats[sel]])[:, None]
     # a one-sided emitter's back is black: only the front side (sign +1) emits
     side_emits = (sides_sign[pieces.side] > 0) | scene.double_sided[mats]
     p_em = np.pi * scene.emission.astype(np.float64)[mats] * side_emits[:, None]
@@ -479,6 +515,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     counts = check_budget(scene, grid, corners, sides_tri, sides_sign, memory_budget_mb)
     checkpoint()
     pieces = clip_sides(corners, sides_tri, sides_sign, grid, counts)
+    pieces = drop_passing(pieces, sides_tri[pieces.side], scene, grid, surfaces)
     checkpoint()
     pieces = find_patches(pieces, sides_tri[pieces.side], scene, grid)
     pieces = cut_straddlers(pieces, sides_tri[pieces.side], corners, grid)
