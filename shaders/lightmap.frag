@@ -20,6 +20,9 @@
 #endif
 uniform vec3 u_albedo;
 uniform vec3 u_emission;
+uniform float u_alpha;      // the base colour's alpha (an alpha-masked material's texture alpha times it)
+uniform float u_cutoff;     // alpha below it is cut out (-1: not masked)
+uniform vec3 u_glass;       // thin glass seen through: its tint, multiplied into what lies behind (x < 0: none)
 uniform sampler2D u_texture;
 uniform sampler2DArray u_pages;
 uniform int u_page;
@@ -65,6 +68,14 @@ vec3 to_srgb(vec3 x) {
 }
 
 void main() {
+    if (u_glass.x >= 0.0) {  // drawn last, blended as dst * src (the renderer's glass pass)
+#if TONEMAP
+        f_color = vec4(pow(u_glass, vec3(1.0 / 2.2)), 1.0);  // near the sRGB curve's slope on what it filters
+#else
+        f_color = vec4(u_glass, 1.0);
+#endif
+        return;
+    }
 #if BICUBIC
     vec3 H = bicubic(v_uv1);
 #else
@@ -73,7 +84,9 @@ void main() {
     H = max(H, 0.0);
     vec3 albedo = u_albedo;
 #if TEXTURED
-    albedo *= texture(u_texture, v_uv0).rgb;
+    vec4 tex = texture(u_texture, v_uv0);
+    if (u_alpha * tex.a < u_cutoff) discard;
+    albedo *= tex.rgb;
 #endif
 #if MODE == 1
     vec3 L = H / PI;

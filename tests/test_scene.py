@@ -228,25 +228,27 @@ def test_obj_polygons_materials_and_errors(tmp_path):
 
 
 def test_ignored_material_terms_are_named_once(tmp_path):
-    """A mirror or glass material comes out diffuse: the loader says which
-    terms it ignores, in one warning per file."""
+    """A mirror comes out diffuse: the loader says which terms it ignores,
+    in one warning per file. Glass's dissolve is read (thin glass, 1 - d),
+    not ignored."""
     (tmp_path / "m.mtl").write_text("newmtl mirror\nKd 0.1 0.1 0.1\nKs 0.9 0.9 0.9\nNs 900\nillum 3\n"
                                     "newmtl glass\nKd 0.9 0.9 0.9\nd 0.2\nNi 1.5\nnewmtl matte\nKd 0.5 0.5 0.5\n")
     (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl mirror\nf 1 2 3\n"
                                     "usemtl glass\nf 1 3 2\nusemtl matte\nf 3 2 1\n")
     with pytest.warns(UserWarning, match="ignores") as rec:
-        load_scene(tmp_path / "m.obj")
+        scene = load_scene(tmp_path / "m.obj")
     notes = [str(r.message) for r in rec if "ignores" in str(r.message)]
     assert len(notes) == 1
-    assert "specular" in notes[0] and "'mirror'" in notes[0] and "transparency" in notes[0]
-    assert "'glass'" in notes[0] and "matte" not in notes[0]
+    assert "specular" in notes[0] and "'mirror'" in notes[0] and "reflection/refraction" in notes[0]
+    assert "'glass'" not in notes[0] and "matte" not in notes[0]
+    assert {m.name: round(m.transmission, 6) for m in scene.materials} == {"mirror": 0.0, "glass": 0.8, "matte": 0.0}
     b = GltfBuilder()
     b.material("plain", (0.5,) * 3)
     b.mesh("q", *quad((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)), 0)
     b.doc.materials[0].pbrMetallicRoughness.metallicFactor = 1.0
-    b.doc.materials[0].extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0}}
+    b.doc.materials[0].extensions = {"KHR_materials_volume": {"thicknessFactor": 1.0}}
     b.save(tmp_path / "metal.glb")
-    with pytest.warns(UserWarning, match=r"ignores metallic.*'plain'.*transmission"):
+    with pytest.warns(UserWarning, match=r"ignores metallic.*'plain'.*volume"):
         load_scene(tmp_path / "metal.glb")
 
 

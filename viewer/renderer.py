@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from baker.scene.surfaces import VOXEL_PASS
+
 from .camera import perspective, view_of
 
 MODES = ("lightmap", "irradiance", "albedo", "checker", "pages")  # the shader's MODE 0..4
@@ -61,9 +63,15 @@ class Renderer:
         self.textures = {}
         for i, m in enumerate(scene.materials):
             if m.texture is not None and scene.uvs is not None:
-                t = np.ascontiguousarray(m.texture, np.float32)
-                tex = ctx.texture((t.shape[1], t.shape[0]), 3, t.tobytes(), dtype="f4")
-                tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                # RGBA: albedo and the mask's alpha (1 where the material is not masked)
+                t = np.ones(m.texture.shape[:2] + (4,), np.float32)
+                t[..., :3] = m.texture
+                if m.masked and m.opacity is not None and m.opacity.shape == m.texture.shape[:2]:
+                    t[..., 3] = m.opacity
+                tex = ctx.texture((t.shape[1], t.shape[0]), 4, t.tobytes(), dtype="f4")
+                # a mask is tested at the nearest texel, as every ray of the bake tested it
+                f = moderngl.NEAREST if m.masked else moderngl.LINEAR
+                tex.filter = (f, f)
                 self.textures[i] = tex
         self.draws = draw_groups(bake)
         lo, hi = scene.bounds()
@@ -99,7 +107,15 @@ class Renderer:
         self.pages.use(0)
         mats = self.bake.scene.materials
         current = None
-        for d in self.draws:
+        # thin glass the bake holds no light for (t >= VOXEL_PASS) goes last: it filters what lies behind it
+        glass = [d for d in self.draws if mats[d.material].transmission >= VOXEL_PASS]
+        opaque = [d for d in self.draws if mats[d.material].transmission < VOXEL_PASS]
+        for d in opaque + glass:
+            m = mats[d.material]
+            if d is (glass[0] if glass else None):
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR
+                ctx.fbo.depth_mask = False
             tex = self.textures.get(d.material)
             prog, vao = self.variant(mode, bicubic, tonemap, tex is not None)
             if prog is not current:  # a program's shared settings once per switch
@@ -108,14 +124,19 @@ class Renderer:
                 for name, value in (("u_exposure", float(exposure)), ("u_pages", 0), ("u_texture", 1)):
                     if name in prog:
                         prog[name].value = value
-            m = mats[d.material]
-            for name, value in (("u_albedo", tuple(float(v) for v in m.albedo)),
-                                ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page)):
+            tint = tuple(float(m.transmission * a) for a in m.albedo) if m.transmission >= VOXEL_PASS else (-1.0,) * 3
+            for name, value in (("u_albedo", tuple(float((1.0 - m.transmission) * v) for v in m.albedo)),
+                                ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
+                                ("u_alpha", float(m.alpha)), ("u_cutoff", float(m.alpha_cutoff) if m.masked else -1.0),
+                                ("u_glass", tint)):
                 if name in prog:  # (a view may not read it)
                     prog[name].value = value
             if tex is not None:
                 tex.use(1)
             vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
+        if glass:
+            ctx.disable(moderngl.BLEND)
+            ctx.fbo.depth_mask = True
 
     def release(self):
         for prog, vao in self.variants.values():

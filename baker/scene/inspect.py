@@ -169,6 +169,8 @@ def describe(scene) -> str:
         n = int((scene.material_ids == i).sum())
         em = f"  emits L_e {a(m.emission)}" if m.emission.max() > 0 else ""
         tex = "  textured" if m.texture is not None else ""
+        tex += f"  alpha mask (cutoff {m.alpha_cutoff:g})" if m.masked else ""
+        tex += f"  thin glass (transmission {m.transmission:g})" if m.transmission > 0 else ""
         out.append(f"  [{i}] {m.name:<20} albedo {a(m.albedo, 3)}  {'double' if m.double_sided else 'one'}-sided  "
                    f"{n} triangles{em}{tex}")
     out.append(f"emitters   {len(scene.emitter_triangles())} triangles, total emitted power {a(power, 5)} W"
