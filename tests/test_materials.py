@@ -227,3 +227,15 @@ def test_bake_keeps_masks_and_glass(make_scene, tmp_path, name):
     cpu = render_bake(bake, 0, 64, 64)
     assert abs(gpu.mean() / cpu.mean() - 1) < 0.01
     assert np.percentile(np.abs(gpu - cpu) / np.maximum(cpu, 1e-3), 95) < 0.01
+
+
+def test_emissive_texture_is_named_as_ignored(tmp_path):
+    b = GltfBuilder()
+    tex = b.texture(b.image(_png(_checker())))
+    b.mesh("lamp", *quad((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1), facing=(0, 1, 0)),
+           b.material("lamp", (0.5,) * 3, emission=(2.0, 2.0, 2.0), emissive_texture=tex),
+           uvs=np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32))
+    b.save(tmp_path / "lamp.glb")
+    with pytest.warns(UserWarning, match=r"ignores emissive texture in 'lamp'"):
+        scene = load_scene(tmp_path / "lamp.glb")
+    assert scene.materials[0].emission_texture is not None and scene.materials[0].emission.max() == 2.0
