@@ -239,3 +239,22 @@ def test_emissive_texture_is_named_as_ignored(tmp_path):
     with pytest.warns(UserWarning, match=r"ignores emissive texture in 'lamp'"):
         scene = load_scene(tmp_path / "lamp.glb")
     assert scene.materials[0].emission_texture is not None and scene.materials[0].emission.max() == 2.0
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda m: m.extensions.update({"KHR_materials_transmission": {"transmissionFactor": 2.0}}), "above 1"),
+    (lambda m: m.extensions.update({"KHR_materials_transmission": {"transmissionFactor": "x"}}), "transmissionFactor"),
+    (lambda m: setattr(m, "alphaCutoff", -1.0), "alphaCutoff"),
+    (lambda m: setattr(m.pbrMetallicRoughness, "baseColorFactor", [1, 1, 1, -0.5]), "alpha"),
+])
+def test_crafted_glass_and_mask_values_are_refused_in_one_line(tmp_path, edit, message):
+    from baker.errors import SceneError
+    b = leaf_card()
+    leaf = b.doc.materials[1]
+    leaf.extensions = leaf.extensions or {}
+    edit(leaf)
+    path = tmp_path / "bad.glb"
+    b.save(path)
+    with pytest.raises(SceneError, match=message) as e:
+        load_scene(str(path))
+    assert "\n" not in str(e.value)
