@@ -16,19 +16,38 @@ from .vpl import KIND_AREA, KIND_DIRECTIONAL, VPLs, concat, direct_vpls, indirec
 
 @dataclass(frozen=True)
 class Lights:
-    """The VPLs and their tree (None when there are none)."""
+    """The VPLs and their tree (None when there are none). sky: the
+    directions (K, 3) along which shading points see the sky, by a
+    visibility ray each (lightcuts.sky_light); then the tree holds only
+    the VPLs before the sky's (vpls.kind: KIND_AREA), and the sky's VPLs
+    are there for the viewer's preview and the bake file. None: the sky's
+    directions, if any, are VPLs of the tree like any other."""
     vpls: VPLs
     tree: LightTree | None
+    sky: np.ndarray | None = None
+
+    @property
+    def points(self) -> int:
+        """How many VPLs (from the first) the cuts and the brute force sum."""
+        return len(self.vpls) if self.sky is None else int(np.sum(self.vpls.kind != KIND_DIRECTIONAL))
 
 
 def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -> Lights:
-    """The VPLs and their tree for a Prepared scene and its voxel Solution.
-    on_surface: voxel VPLs that lie just under their curved surface move
-    onto it through the BVH (vpl.on_surface)."""
+    """The VPLs and their tree for a Prepared scene and its voxel Solution;
+    the sky is shaded along its own VPLs' directions (Lights.sky): a cut
+    over a partly hidden sky refines to nearly every direction anyway, at
+    the cost of a tree walk and a bound per ray. on_surface: voxel VPLs
+    that lie just under their curved surface move onto it through the BVH
+    (vpl.on_surface)."""
     bvh = prepared.bvh if on_surface else None
     vpls = make_vpls(prepared.scene, solution, prepared.surfaces, config.direct_vpls, config.sky_vpls, config.seed,
                      bvh)
-    return Lights(vpls, build_tree(vpls, config.seed) if len(vpls) else None)
+    sky = vpls.kind == KIND_DIRECTIONAL
+    m = int(np.sum(~sky))
+    if np.any(sky[:m]):
+        raise AssertionError("make_vpls puts the sky's directions last")
+    tree = build_tree(vpls.subset(m), config.seed) if m else None
+    return Lights(vpls, tree, np.ascontiguousarray(vpls.normal[m:], np.float64))
 
 
 def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offset=1e-4, epsilon=0.02, cap=1000,
@@ -41,6 +60,9 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
     v, t = lights.vpls, lights.tree
+    sky = np.zeros((0, 3)) if lights.sky is None else lights.sky
+    if lights.sky is not None:
+        v = v.subset(lights.points)
     if t is None:
         t = LightTree(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.zeros((1, 3)),
                       np.zeros(1), np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int8))
@@ -48,7 +70,7 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     tree = tree_arrays(t, node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
     return shade_points(bvh.arrays, surfaces.arrays, tree, VPLArrays(v.kind, v.position, v.normal, v.area, v.power,
                                                                      patch),
-                        points, normals, valid, float(offset), float(epsilon), int(cap), bool(brute))
+                        sky, points, normals, valid, float(offset), float(epsilon), int(cap), bool(brute))
 
 
 def tree_arrays(tree: LightTree, patch) -> TreeArrays:

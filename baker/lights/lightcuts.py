@@ -27,7 +27,7 @@ from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUM_B, LUM_G, LUM_R
 from ..kernels.inline import borrowed
 from ..kernels.traverse import transmittance
-from ..scene.surfaces import punctual_irradiance
+from ..scene.surfaces import SKY_HEMISPHERE, SKY_NONE, punctual_irradiance
 from .vpl import KIND_DIRECTIONAL
 
 # The kernels' view of a light tree (lights/__init__.py: tree_arrays packs it, one 128-byte record per node)
@@ -311,12 +311,14 @@ def scratch(cap):
 
 
 @njit(cache=True)
-def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
+def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0):
     """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
     shadow rays cast. p, n: the point and its unit normal (3-tuples);
     heap: scratch (bound, node, g) of cap + 2 entries each (the cut's
     refinable nodes with their bound and representative's g, 3 channels:
-    the tint of glass on its shadow ray)."""
+    the tint of glass on its shadow ray); floor: the luminance of the
+    irradiance p gets from elsewhere (the sky, punctual lights): the cut's
+    error is bounded relative to the whole."""
     # borrowed: the records' arrays read in the loop take no reference counts (kernels/inline.py)
     bvh, stack, tree, vpls = borrowed(bvh), borrowed(stack), borrowed(tree), borrowed(vpls)
     heap_b, heap_n, heap_g = borrowed(heap)
@@ -338,7 +340,7 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap):
         f0, f1, f2 = e0, e1, e2
     while size > 0:
         est = LUM_R * e0 + LUM_G * e1 + LUM_B * e2
-        if heap_b[0] <= epsilon * est or cut >= cap:
+        if heap_b[0] <= epsilon * (est + floor) or cut >= cap:
             break
         node, g, size = _pop(heap_b, heap_n, heap_g, size)
         e0 -= tree.power[node, 0] * g[0]
@@ -386,15 +388,57 @@ def brute_force(bvh, stack, vpls, p, n, offset):
     return h0, h1, h2
 
 
+@njit(cache=True)
+def sky_light(bvh, stack, surf, sky, px, py, pz, nx, ny, nz, offset):
+    """Irradiance (r, g, b) at p (normal n) from the sky, and the rays
+    cast: one visibility ray along each direction of sky (K, 3), a fixed
+    set stratified over the sky's domain (the same for every point: no
+    noise from point to point), weighted by its cosine. The ratio form
+    E = L E0(n) sum(cos T) / sum(cos), E0 the unoccluded integral of the
+    cosine over the sky's domain (pi, or pi (1 + n.up) / 2 for a
+    hemisphere), is exact wherever nothing blocks the sky, at any K."""
+    mode = surf.sky_mode
+    if mode == SKY_NONE or sky.shape[0] == 0:
+        return 0.0, 0.0, 0.0, 0
+    L = surf.sky_radiance
+    if L[0] <= 0.0 and L[1] <= 0.0 and L[2] <= 0.0:
+        return 0.0, 0.0, 0.0, 0
+    e0 = math.pi
+    if mode == SKY_HEMISPHERE:
+        up = surf.sky_up
+        e0 = 0.5 * math.pi * (1.0 + nx * up[0] + ny * up[1] + nz * up[2])
+    if e0 <= 0.0:
+        return 0.0, 0.0, 0.0, 0
+    ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
+    w = a0 = a1 = a2 = 0.0
+    rays = 0
+    for k in range(sky.shape[0]):
+        dx, dy, dz = sky[k, 0], sky[k, 1], sky[k, 2]
+        c = nx * dx + ny * dy + nz * dz
+        if c <= COS_MIN:
+            continue
+        w += c
+        rays += 1
+        tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        a0 += c * tr
+        a1 += c * tg
+        a2 += c * tb
+    if w <= 0.0:
+        return 0.0, 0.0, 0.0, rays
+    s = e0 / w
+    return L[0] * s * a0, L[1] * s * a1, L[2] * s * a2, rays
+
+
 CHUNK = 64  # shading points per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon, cap, brute):
+def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, offset, epsilon, cap, brute):
     """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
     (where valid): lightcuts over the tree (TreeArrays) of the VPLs
-    (VPLArrays; brute: every VPL) plus the
-    scene's punctual lights, exact; cut size (N,) and shadow rays (N,)."""
+    (VPLArrays; brute: every VPL) plus the scene's punctual lights, exact,
+    and the sky along the directions sky (K, 3) (sky_light; K = 0: the
+    sky, if any, is among the VPLs); cut size (N,) and shadow rays (N,)."""
     n = points.shape[0]
     out = np.zeros((n, 3))
     cuts = np.zeros(n, np.int64)
@@ -408,17 +452,9 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
                 continue
             px, py, pz = points[k, 0], points[k, 1], points[k, 2]
             nx, ny, nz = normals[k, 0], normals[k, 1], normals[k, 2]
-            h0 = h1 = h2 = 0.0
-            if vpls.kind.shape[0] > 0:
-                if brute:
-                    h0, h1, h2 = brute_force(bvh, stack, vpls, (px, py, pz), (nx, ny, nz), offset)
-                    cuts[k] = vpls.kind.shape[0]
-                    rays[k] = vpls.kind.shape[0]
-                else:
-                    h0, h1, h2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz), offset, epsilon,
-                                                cap, heap)
-                    cuts[k] = c
-                    rays[k] = r
+            # the exact parts first: their sum is the floor the cut's error is bounded against
+            h0, h1, h2, r = sky_light(bvh, stack, surf, sky, px, py, pz, nx, ny, nz, offset)
+            rays[k] += r
             for i in range(n_lights):
                 lr, lg, lb, dx, dy, dz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)
                 if lr + lg + lb <= 0.0:
@@ -429,6 +465,20 @@ def shade_points(bvh, surf, tree, vpls, points, normals, valid, offset, epsilon,
                 h0 += lr * tr
                 h1 += lg * tg
                 h2 += lb * tb
+            if vpls.kind.shape[0] > 0:
+                if brute:
+                    c0, c1, c2 = brute_force(bvh, stack, vpls, (px, py, pz), (nx, ny, nz), offset)
+                    cuts[k] = vpls.kind.shape[0]
+                    rays[k] += vpls.kind.shape[0]
+                else:
+                    floor = LUM_R * h0 + LUM_G * h1 + LUM_B * h2
+                    c0, c1, c2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz), offset, epsilon,
+                                                cap, heap, floor)
+                    cuts[k] = c
+                    rays[k] += r
+                h0 += c0
+                h1 += c1
+                h2 += c2
             out[k, 0], out[k, 1], out[k, 2] = h0, h1, h2
     return out, cuts, rays
 

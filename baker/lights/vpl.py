@@ -48,6 +48,10 @@ class VPLs:
     def __len__(self):
         return len(self.kind)
 
+    def subset(self, m: int) -> "VPLs":
+        """The first m VPLs."""
+        return VPLs(*(getattr(self, f)[:m] for f in ("kind", "position", "normal", "power", "area", "indirect")))
+
     def counts(self) -> dict:
         d = (self.kind == KIND_AREA) & ~self.indirect
         return {"vpls": len(self), "vpls_direct": int(d.sum()), "vpls_indirect": int(self.indirect.sum()),
