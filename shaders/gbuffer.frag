@@ -5,6 +5,8 @@ uniform vec3 u_albedo;
 uniform vec3 u_emission;
 uniform bool u_has_texture;
 uniform sampler2D u_texture;
+uniform bool u_has_emit_texture;
+uniform sampler2D u_emit_texture;
 in vec3 v_world;
 in vec2 v_uv0;
 layout(location = 0) out vec4 o_position;
@@ -18,5 +20,7 @@ void main() {
     o_position = vec4(v_world, 1.0);
     o_normal = vec4(n, 0.0);
     o_albedo = vec4(albedo, 1.0);
-    o_emission = vec4(u_emission, 1.0);
+    vec3 emission = u_emission;
+    if (u_has_emit_texture) emission *= texture(u_emit_texture, v_uv0).rgb;
+    o_emission = vec4(emission, 1.0);
 }

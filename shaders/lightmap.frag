@@ -24,6 +24,8 @@ uniform float u_alpha;      // the base colour's alpha (an alpha-masked material
 uniform float u_cutoff;     // alpha below it is cut out (-1: not masked)
 uniform vec3 u_glass;       // thin glass seen through: its tint, multiplied into what lies behind (x < 0: none)
 uniform sampler2D u_texture;
+uniform bool u_has_emit_texture;
+uniform sampler2D u_emit_texture;   // the emissive texture, times u_emission
 uniform sampler2DArray u_pages;
 uniform int u_page;
 uniform float u_exposure;   // linear scale (TONEMAP 0: linear radiance out, for snapshots)
@@ -102,7 +104,9 @@ void main() {
     float line = (min(cell.x, cell.y) < 0.06) ? 0.3 : 1.0;  // the quadtree's 8-texel grid
     vec3 L = hue * line * (0.25 + H / PI);
 #else
-    vec3 L = albedo * H / PI + u_emission;
+    vec3 emission = u_emission;
+    if (u_has_emit_texture) emission *= texture(u_emit_texture, v_uv0).rgb;
+    vec3 L = albedo * H / PI + emission;
 #endif
 #if TONEMAP
     f_color = vec4(to_srgb(aces(L * u_exposure)), 1.0);

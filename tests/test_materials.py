@@ -229,16 +229,94 @@ def test_bake_keeps_masks_and_glass(make_scene, tmp_path, name):
     assert np.percentile(np.abs(gpu - cpu) / np.maximum(cpu, 1e-3), 95) < 0.01
 
 
-def test_emissive_texture_is_named_as_ignored(tmp_path):
+LAMP_L = 2.0   # the lamp's emissive factor: its texture is white (1) on x < 0, black (0) on x > 0
+
+
+def half_lit_lamp():
+    """A 1 x 1 lamp 1 m over a grey floor, facing down, black (it reflects
+    nothing back), its emissive texture 16 x 2 texels, white over x < 0 and
+    black over x > 0 (each of its two triangles spans both halves); a
+    camera below it, looking along +z, that sees the lamp (x < 0 on the
+    right of the image) and the floor."""
     b = GltfBuilder()
-    tex = b.texture(b.image(_png(_checker())))
-    b.mesh("lamp", *quad((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1), facing=(0, 1, 0)),
-           b.material("lamp", (0.5,) * 3, emission=(2.0, 2.0, 2.0), emissive_texture=tex),
-           uvs=np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32))
-    b.save(tmp_path / "lamp.glb")
-    with pytest.warns(UserWarning, match=r"ignores emissive texture in 'lamp'"):
-        scene = load_scene(tmp_path / "lamp.glb")
-    assert scene.materials[0].emission_texture is not None and scene.materials[0].emission.max() == 2.0
+    b.mesh("floor", *quad((-3, 0, -3), (3, 0, -3), (3, 0, 3), (-3, 0, 3), facing=(0, 1, 0)),
+           b.material("floor", (0.5, 0.5, 0.5)))
+    rgba = np.zeros((2, 16, 4), np.uint8)
+    rgba[..., 3] = 255
+    rgba[:, :8, :3] = 255
+    tex = b.texture(b.image(_png(rgba)), linear_filter=False, clamp=False)
+    pos, tris = quad((-0.5, 1, -0.5), (0.5, 1, -0.5), (0.5, 1, 0.5), (-0.5, 1, 0.5), facing=(0, -1, 0))
+    uvs = np.stack([pos[:, 0] + 0.5, pos[:, 2] + 0.5], axis=1).astype(np.float32)
+    b.mesh("lamp", pos, tris, b.material("lamp", (0.0,) * 3, emission=(LAMP_L,) * 3, emissive_texture=tex), uvs=uvs)
+    b.camera("below", (0.0, 0.1, -2.0), (0.0, 0.45, 1.0), (0.0, 1.0, 0.0), 60.0, 1.0)
+    return b
+
+
+def test_emissive_texture_emits_its_pattern(make_scene, tmp_path):
+    """The lamp emits only its white half: the exact irradiance under it is
+    that of the rectangle [-0.5, 0] x [-0.5, 0.5] of radiance L, and the
+    photons, the direct VPLs and the path tracer all give it (no pattern:
+    the whole lamp at L / 2 would light x = +0.25 as much as x = -0.25).
+    The bake file carries the texture, and our viewer shows it as the CPU
+    view of the bake does."""
+    from baker.lights.vpl import direct_vpls
+    from baker.scene import build_scene_bvh, pack
+    from tests.naive import irradiance_under_rectangle
+    from tests.test_pathtrace import point_radiance
+    scene = make_scene(half_lit_lamp(), "mat_lamp")
+    lamp = [m for m in scene.materials if m.name == "lamp"][0]
+    assert lamp.emission_texture is not None
+    exact = lambda x, z: irradiance_under_rectangle(LAMP_L, -0.5, 0.0, -0.5, 0.5, 1.0, x, z)  # noqa: E731
+    surf = pack(scene)
+    assert np.allclose(surf.emitted_power, np.pi * LAMP_L * 0.5, rtol=0.02)  # pi L x the lit half's area
+    # direct VPLs: only on the white half, their power the lit half's
+    v = direct_vpls(surf, 8192, seed=1)
+    lit = v.power[:, 0] > 0
+    assert np.all(v.position[lit, 0] <= 1e-9) and np.all(v.position[~lit, 0] >= -1e-9)
+    assert v.power[:, 0].sum() == pytest.approx(np.pi * LAMP_L * 0.5, rel=0.01)
+    bvh = build_scene_bvh(scene)
+    pts = np.array([[-0.25, 0.0, 0.0], [0.25, 0.0, 0.0], [1.0, 0.0, 0.3], [-1.2, 0.0, -0.6]])
+    ref = np.array([exact(x, z) for x, _, z in pts])
+    H, _, _ = irradiance(Lights(v, None), bvh, surf, pts, np.tile([0.0, 1.0, 0.0], (len(pts), 1)), brute=True)
+    np.testing.assert_allclose(H[:, 0], ref, rtol=0.02)
+    # photons: the floor's voxels within 1.5 m of the lamp against the exact irradiance at their centroids
+    sol = solve(scene, solver_config("default", resolution=32, photons=2_000_000, max_bounces=1))
+    vox = sol.voxels
+    floor = (np.abs(vox.normal[:, 1] - 1) < 1e-6) & (np.abs(vox.centroid[:, 0]) < 1.5) & \
+        (np.abs(vox.centroid[:, 2]) < 1.5) & (vox.area > 0.99 * vox.cell_size ** 2)
+    want = np.array([exact(x, z) for x, _, z in vox.centroid[floor]])
+    got = sol.irradiance[floor, 0]
+    assert abs(got.sum() / want.sum() - 1) < 0.02
+    for side in (vox.centroid[floor, 0] < -0.1, vox.centroid[floor, 0] > 0.1):
+        assert abs(got[side].sum() / want[side].sum() - 1) < 0.03
+    # the path tracer: the floor's radiance rho / pi x H
+    for p, e in zip(pts, ref):
+        est = point_radiance(scene, p, 20000, seed=4)[:, 0]
+        assert abs(est.mean() - 0.5 / np.pi * e) < 4 * est.std(ddof=1) / np.sqrt(est.size) + 1e-9, (p, est.mean())
+    # the bake file keeps the texture; the viewer and the CPU view of the bake agree, the lamp half lit
+    from baker.bake import read_bake, render_bake, write_bake
+    from baker.bake.pipeline import bake_scene
+    from baker.presets import bake_config
+    from viewer.context import headless_context
+    from viewer.snapshot import snapshot
+    result = bake_scene(scene, bake_config("preview", resolution=16, photons=50_000))
+    write_bake(tmp_path / "lamp.glb", result.bake)
+    bake = read_bake(tmp_path / "lamp.glb")
+    back = [m for m in bake.scene.materials if m.name.startswith("lamp")][0]
+    assert back.emission_texture is not None and np.allclose(back.emission_texture, lamp.emission_texture, atol=1e-3)
+    cpu = render_bake(bake, 0, 64, 64)
+    ctx = headless_context()
+    try:
+        gpu = snapshot(bake, 0, 64, 64, ctx=ctx)
+    finally:
+        ctx.release()
+    assert abs(gpu.mean() / cpu.mean() - 1) < 0.01
+    assert np.percentile(np.abs(gpu - cpu) / np.maximum(cpu, 1e-3), 95) < 0.01
+    # the lamp's white half: right of the image's centre (the texture repeats: bilinear lookups within half a
+    # texel of the lamp's far edge blend in the first column, up to half white)
+    bright = cpu[..., 0] > 0.75 * LAMP_L
+    assert cpu.max() == pytest.approx(LAMP_L, rel=1e-3) and bright.sum() > 50
+    assert np.nonzero(bright)[1].min() >= 31
 
 
 @pytest.mark.parametrize("edit, message", [

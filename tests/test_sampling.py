@@ -152,9 +152,9 @@ def _draw_emitter(surf, u, stratified):
     out = np.empty((len(u), 3))
     for i in range(len(u)):
         if stratified:
-            _, px, py, pz, _ = emitter_point(surf, u[i, 0], u[i, 1])
+            _, px, py, pz, _, _, _ = emitter_point(surf, u[i, 0], u[i, 1])
         else:
-            _, px, py, pz, _ = sample_emitter(surf, u[i, 0], u[i, 1], u[i, 2])
+            _, px, py, pz, _, _, _ = sample_emitter(surf, u[i, 0], u[i, 1], u[i, 2])
         out[i, 0], out[i, 1], out[i, 2] = px, py, pz
     return out
 

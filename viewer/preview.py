@@ -84,12 +84,16 @@ class Preview:
             tex = self.r.textures.get(d.material)
             for name, value in (("u_albedo", tuple(float(v) for v in m.albedo)),
                                 ("u_emission", tuple(float(v) for v in m.emission)),
-                                ("u_has_texture", tex is not None)):
+                                ("u_has_texture", tex is not None),
+                                ("u_has_emit_texture", d.material in self.r.emit_textures)):
                 if name in self.g_prog:
                     self.g_prog[name].value = value
             if tex is not None:
                 tex.use(3)
                 self.g_prog["u_texture"].value = 3
+            if d.material in self.r.emit_textures:
+                self.r.emit_textures[d.material].use(4)
+                self.g_prog["u_emit_texture"].value = 4
             self.g_vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
         self.afbo.use()
         self.afbo.clear(0.0, 0.0, 0.0, 0.0)

@@ -73,6 +73,13 @@ class Renderer:
                 f = moderngl.NEAREST if m.masked else moderngl.LINEAR
                 tex.filter = (f, f)
                 self.textures[i] = tex
+        self.emit_textures = {}
+        for i, m in enumerate(scene.materials):
+            if m.emission_texture is not None and scene.uvs is not None and float(np.max(m.emission)) > 0:
+                t = np.ascontiguousarray(m.emission_texture, np.float32)
+                tex = ctx.texture((t.shape[1], t.shape[0]), 3, t.tobytes(), dtype="f4")
+                tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                self.emit_textures[i] = tex
         self.draws = draw_groups(bake)
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
@@ -121,18 +128,21 @@ class Renderer:
             if prog is not current:  # a program's shared settings once per switch
                 current = prog
                 prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
-                for name, value in (("u_exposure", float(exposure)), ("u_pages", 0), ("u_texture", 1)):
+                for name, value in (("u_exposure", float(exposure)), ("u_pages", 0), ("u_texture", 1),
+                                    ("u_emit_texture", 2)):
                     if name in prog:
                         prog[name].value = value
             tint = tuple(float(m.transmission * a) for a in m.albedo) if m.transmission >= VOXEL_PASS else (-1.0,) * 3
             for name, value in (("u_albedo", tuple(float((1.0 - m.transmission) * v) for v in m.albedo)),
                                 ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
                                 ("u_alpha", float(m.alpha)), ("u_cutoff", float(m.alpha_cutoff) if m.masked else -1.0),
-                                ("u_glass", tint)):
+                                ("u_glass", tint), ("u_has_emit_texture", d.material in self.emit_textures)):
                 if name in prog:  # (a view may not read it)
                     prog[name].value = value
             if tex is not None:
                 tex.use(1)
+            if d.material in self.emit_textures:
+                self.emit_textures[d.material].use(2)
             vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
         if glass:
             ctx.disable(moderngl.BLEND)
@@ -142,5 +152,5 @@ class Renderer:
         for prog, vao in self.variants.values():
             vao.release()
             prog.release()
-        for obj in (self.vbo, self.pages, *self.textures.values()):
+        for obj in (self.vbo, self.pages, *self.textures.values(), *self.emit_textures.values()):
             obj.release()

@@ -83,10 +83,12 @@ def write_bake(path, bake: Bake, inputs=()):
         page_tex.append(b.texture(b.image(_png(bake.pages[p], bake.page_scale[p]))))
         page_entries.append({"bufferView": b.buffer_view(_exr(bake.pages[p] * exr_scale)), "mimeType": "image/x-exr",
                              "size": int(bake.pages.shape[1]), "scale": float(bake.page_scale[p])})
-    albedo_tex = {}
+    albedo_tex, emit_tex = {}, {}
     for i, m in enumerate(scene.materials):
         if m.texture is not None and scene.uvs is not None:
             albedo_tex[i] = b.texture(b.image(_texture_png(m.texture, m.opacity)), clamp=False)
+        if m.emission_texture is not None and scene.uvs is not None and float(np.max(m.emission)) > 0:
+            emit_tex[i] = b.texture(b.image(_texture_png(m.emission_texture, None)), clamp=False)
     corners = scene.vertices.reshape(-1, 3, 3)
     normals = scene.normals.reshape(-1, 3, 3)
     uv0 = scene.uvs.reshape(-1, 3, 2) if scene.uvs is not None else np.zeros((len(corners), 3, 2), np.float32)
@@ -99,7 +101,7 @@ def write_bake(path, bake: Bake, inputs=()):
         ext = {"MOZ_lightmap": {"index": page_tex[p], "texCoord": 1, "intensity": float(bake.page_scale[p])},
                EXTENSION: {"page": int(p), "material": int(mi)}}
         mat = b.material(f"{m.name}@page{p}", list(m.albedo) + [m.alpha], m.emission, False, albedo_tex.get(mi), ext,
-                         m.alpha_cutoff, m.transmission)
+                         m.alpha_cutoff, m.transmission, emit_tex.get(mi))
         t = np.asarray(tris)
         parts.append({"positions": corners[t], "normals": normals[t], "uv0": uv0[t], "uv1": bake.uv1[t],
                       "material": mat})

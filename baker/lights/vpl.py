@@ -26,7 +26,8 @@ from numba import njit
 
 from ..kernels.rng import rand01
 from ..scene.model import LightKind
-from ..scene.surfaces import SKY_HEMISPHERE, SKY_NONE, sample_emitter, sky_solid_angle, triangle_normal
+from ..scene.surfaces import (SKY_HEMISPHERE, SKY_NONE, emission_at, sample_emitter, sky_solid_angle,
+                              triangle_normal)
 
 KIND_AREA, KIND_DIRECTIONAL = int(LightKind.AREA), int(LightKind.DIRECTIONAL)  # a VPL is a point or a direction
 STREAM_VPL = 0x7F1  # rand01 index of the direct VPLs' stream (dims 0..3 per VPL: see kernels/rng.py's table)
@@ -64,28 +65,36 @@ class VPLs:
 def _direct(surf, n, seed):
     pos = np.empty((n, 3))
     nor = np.empty((n, 3))
+    power = np.empty((n, 3))
     for i in range(n):
         u0 = (i + rand01(seed, STREAM_VPL + i, 0)) / n  # stratified over the emitters' power
-        tri, px, py, pz, p_tri = sample_emitter(surf, u0, rand01(seed, STREAM_VPL + i, 1),
-                                                rand01(seed, STREAM_VPL + i, 2))
+        tri, px, py, pz, p_tri, b1, b2 = sample_emitter(surf, u0, rand01(seed, STREAM_VPL + i, 1),
+                                                        rand01(seed, STREAM_VPL + i, 2))
         nx, ny, nz = triangle_normal(surf.corners, tri)
-        if surf.double_sided[surf.tri_material[tri]] and rand01(seed, STREAM_VPL + i, 3) < 0.5:
-            nx, ny, nz = -nx, -ny, -nz  # a two-sided emitter: either face, each with half its power
+        sides = 1.0
+        if surf.double_sided[surf.tri_material[tri]]:
+            sides = 2.0
+            if rand01(seed, STREAM_VPL + i, 3) < 0.5:
+                nx, ny, nz = -nx, -ny, -nz  # a two-sided emitter: either face, each with half its power
+        er, eg, eb = emission_at(surf, tri, b1, b2)
+        f = math.pi * surf.tri_area[tri] * sides / (p_tri * n)
         pos[i, 0], pos[i, 1], pos[i, 2] = px, py, pz
         nor[i, 0], nor[i, 1], nor[i, 2] = nx, ny, nz
-    return pos, nor
+        power[i, 0], power[i, 1], power[i, 2] = er * f, eg * f, eb * f
+    return pos, nor, power
 
 
 def direct_vpls(surfaces, n, seed=0):
-    """n points on the area emitters drawn by power: each carries the same
-    power (total / n) and the area of the emitters / n."""
+    """n points on the area emitters, their triangles drawn by power: each
+    carries pi L_e(point) area / (n p_tri) (an emissive texture's pattern;
+    total / n where the emission is uniform and of one colour) and the
+    area of the emitters / n."""
     if n <= 0 or surfaces.n_emitters == 0:
         return _empty()
-    pos, nor = _direct(surfaces.arrays, int(n), int(seed))
+    pos, nor, power = _direct(surfaces.arrays, int(n), int(seed))
     a = surfaces.arrays
     sides = np.where(a.double_sided[a.tri_material[a.emitters]], 2.0, 1.0)
     total_area = float((a.tri_area[a.emitters] * sides).sum())
-    power = np.broadcast_to(surfaces.emitted_power / n, (n, 3)).copy()
     return VPLs(np.zeros(n, np.int8), pos, nor, power, np.full(n, total_area / n), np.zeros(n, bool))
 
 

@@ -26,7 +26,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUMINANCE
 from ..kernels.traverse import hit_normal
-from ..scene.surfaces import albedo_at, hit_past_glass, sky_radiance
+from ..scene.surfaces import albedo_at, emission_at, hit_past_glass, sky_radiance
 from .camera import primary_ray, subpixel
 
 AA = 4                 # the edge pixels' pattern: AA x AA
@@ -94,8 +94,8 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
         mat[i] = m
         point[i, 0], point[i, 1], point[i, 2] = ox + t * dx, oy + t * dy, oz + t * dz
         normal[i, 0], normal[i, 1], normal[i, 2] = nx, ny, nz
-        em = surf.emission
-        base[i, 0], base[i, 1], base[i, 2] = em[m, 0] * gr, em[m, 1] * gg, em[m, 2] * gb
+        er, eg, eb = emission_at(surf, tri, u, v)
+        base[i, 0], base[i, 1], base[i, 2] = er * gr, eg * gg, eb * gb
         ar, ag, ab = albedo_at(surf, tri, u, v)
         k = 1.0 - surf.transmission[m]   # glass kept in the voxels shows its diffuse part
         albedo[i, 0], albedo[i, 1], albedo[i, 2] = ar * k * gr, ag * k * gg, ab * k * gb

@@ -55,22 +55,38 @@ def bilinear(pages_flat, size, p, u, v):
     return bilinear_flat(pages_flat, p * size * size, size, size, u * size, v * size, False)
 
 
-@njit(cache=True, inline="always")
-def albedo_bilinear(surf, tri, b1, b2):
-    """Albedo at barycentrics (b1, b2) of triangle `tri`: the factor times
-    the texture sampled bilinearly, repeated (what a viewer's sampler does)."""
-    mat = surf.tri_material[tri]
-    r, g, b = surf.albedo[mat, 0], surf.albedo[mat, 1], surf.albedo[mat, 2]
-    off = surf.tex_offset[mat]
+@njit(cache=True)
+def _textured_bilinear(surf, factor, off, w, h, tri, b1, b2):
+    """factor (r, g, b) times the texture at tex_data[off:] (w x h; off < 0:
+    none) sampled bilinearly, repeated, at barycentrics (b1, b2) of `tri`
+    (what a viewer's sampler does)."""
+    r, g, b = factor[0], factor[1], factor[2]
     if off < 0:
         return r, g, b
     uv = surf.uvs
-    w, h = surf.tex_size[mat, 0], surf.tex_size[mat, 1]
     b0 = 1.0 - b1 - b2
     x = (b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]) * w
     y = (b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]) * h
     t0, t1, t2 = bilinear_flat(surf.tex_data, off, w, h, x, y, True)
     return r * t0, g * t1, b * t2
+
+
+@njit(cache=True, inline="always")
+def albedo_bilinear(surf, tri, b1, b2):
+    """Albedo at barycentrics (b1, b2) of triangle `tri`: the factor times
+    the texture sampled bilinearly, repeated (what a viewer's sampler does)."""
+    mat = surf.tri_material[tri]
+    return _textured_bilinear(surf, surf.albedo[mat], surf.tex_offset[mat], surf.tex_size[mat, 0],
+                              surf.tex_size[mat, 1], tri, b1, b2)
+
+
+@njit(cache=True, inline="always")
+def emission_bilinear(surf, tri, b1, b2):
+    """L_e at barycentrics (b1, b2) of triangle `tri`: the emissive factor
+    times the emissive texture sampled bilinearly, repeated."""
+    mat = surf.tri_material[tri]
+    return _textured_bilinear(surf, surf.emission[mat], surf.emit_offset[mat], surf.emit_size[mat, 0],
+                              surf.emit_size[mat, 1], tri, b1, b2)
 
 
 @njit(cache=True, parallel=True)
@@ -97,9 +113,10 @@ def _rows(bvh, surf, uv1, page, pages_flat, size, cam, width, height, row0, row1
             a0, a1, a2 = albedo_bilinear(surf, tri, u, v)
             m = surf.tri_material[tri]
             k = 1.0 - surf.transmission[m]   # glass kept in the voxels shows its diffuse part
-            r0 += (k * a0 * inv_pi * h0 + surf.emission[m, 0]) * gr
-            r1 += (k * a1 * inv_pi * h1 + surf.emission[m, 1]) * gg
-            r2 += (k * a2 * inv_pi * h2 + surf.emission[m, 2]) * gb
+            e0, e1, e2 = emission_bilinear(surf, tri, u, v)
+            r0 += (k * a0 * inv_pi * h0 + e0) * gr
+            r1 += (k * a1 * inv_pi * h1 + e1) * gg
+            r2 += (k * a2 * inv_pi * h2 + e2) * gb
         out[y, x, 0] = r0 * w
         out[y, x, 1] = r1 * w
         out[y, x, 2] = r2 * w

@@ -36,7 +36,7 @@ from ..kernels.rng import ROULETTE_GLASS_DIM, STREAM_ROULETTE, mix64, rand01
 from ..kernels.sampling import cosine_hemisphere
 from ..kernels.sobol import sample4
 from ..kernels.traverse import closest_hit, transmittance
-from ..scene.surfaces import albedo_at, emitter_point, punctual_irradiance, sky_radiance
+from ..scene.surfaces import albedo_at, emission_at, emitter_point, punctual_irradiance, sky_radiance
 from .camera import primary_ray
 
 MAX_DEPTH = 1000
@@ -48,6 +48,7 @@ RR_DEPTH = 5
 # arrays one by one and count references to each)
 _closest_hit, _transmittance = inlined(closest_hit), inlined(transmittance)
 _albedo_at, _emitter_point, _punctual_irradiance = inlined(albedo_at), inlined(emitter_point), inlined(punctual_irradiance)
+_emission_at = inlined(emission_at)
 _sky_radiance, _cosine_hemisphere = inlined(sky_radiance), inlined(cosine_hemisphere)
 
 
@@ -101,8 +102,8 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
             if not double[mat]:
                 break  # the back of a one-sided surface absorbs
             nx, ny, nz, cos_in = -nx, -ny, -nz, -cos_in
-        er, eg, eb = emission[mat, 0], emission[mat, 1], emission[mat, 2]
-        if er > 0.0 or eg > 0.0 or eb > 0.0:
+        if emission[mat, 0] > 0.0 or emission[mat, 1] > 0.0 or emission[mat, 2] > 0.0:
+            er, eg, eb = _emission_at(surf, tri, u, v)
             saw_emitter = saw_emitter or pdf_bsdf == 0.0
             w = 1.0
             if pdf_bsdf > 0.0 and n_emitters > 0:
@@ -124,7 +125,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
             if light == 0:
                 if n_emitters == 0:
                     continue
-                ltri, qx, qy, qz, p_tri = _emitter_point(surf, l1, l2)
+                ltri, qx, qy, qz, p_tri, lb1, lb2 = _emitter_point(surf, l1, l2)
                 wx, wy, wz = qx - px, qy - py, qz - pz
                 d2 = wx * wx + wy * wy + wz * wz
                 dist = math.sqrt(d2)
@@ -141,9 +142,10 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
                 pb = cos_x / math.pi
                 w = pdf_light * pdf_light / (pdf_light * pdf_light + pb * pb)
                 f = cos_x / math.pi / pdf_light * w
-                cr = tr * ar * emission[lmat, 0] * f
-                cg = tg * ag * emission[lmat, 1] * f
-                cb = tb * ab * emission[lmat, 2] * f
+                er, eg, eb = _emission_at(surf, ltri, lb1, lb2)
+                cr = tr * ar * er * f
+                cg = tg * ag * eg * f
+                cb = tb * ab * eb * f
                 reach = dist * (1.0 - 1e-7) - eps
             else:
                 hr, hg, hb, wx, wy, wz, reach = _punctual_irradiance(surf, light - 1, px, py, pz, nx, ny, nz)

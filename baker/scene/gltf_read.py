@@ -219,8 +219,8 @@ _IGNORED_EXTENSIONS = {"KHR_materials_volume": "volume",
 def ignored_terms(m) -> list:
     """What of glTF material m the diffuse baker ignores: metallic (the
     factor, 1 when unset, as the specification says), blended or masked
-    alpha, a transmission texture (the factor is read), an emissive texture
-    (the factor is used) and the extensions above."""
+    alpha, a transmission texture (the factor is read) and the extensions
+    above."""
     out = []
     pbr = m.pbrMetallicRoughness
     metallic = 1.0 if pbr is None or pbr.metallicFactor is None else float(pbr.metallicFactor)
@@ -230,8 +230,6 @@ def ignored_terms(m) -> list:
         out.append("alpha BLEND")
     if ((m.extensions or {}).get("KHR_materials_transmission") or {}).get("transmissionTexture") is not None:
         out.append("transmission texture")
-    if m.emissiveTexture is not None:   # read (Material.emission_texture), not yet used by the light
-        out.append("emissive texture")
     for ext, what in _IGNORED_EXTENSIONS.items():
         if ext in (m.extensions or {}):
             out.append(what)

@@ -183,10 +183,10 @@ class Scene:
         return np.nonzero(self.emission.max(axis=1)[self.material_ids] > 0)[0].astype(np.int32)
 
     def emitted_power(self) -> np.ndarray:
-        """(3,) total power of the area emitters, W: pi L_e area per emitting side."""
-        em = self.emission[self.material_ids].astype(np.float64)
-        sides = np.where(self.double_sided[self.material_ids], 2.0, 1.0)
-        return (np.pi * em * (self.triangle_areas() * sides)[:, None]).sum(axis=0)
+        """(3,) total power of the area emitters, W: pi L_e area per emitting
+        side, L_e averaged over each triangle (emissive textures)."""
+        from .surfaces import pack
+        return pack(self).emitted_power
 
     def has_light(self) -> bool:
         """Does anything emit: an area emitter, a punctual light, a sky?"""

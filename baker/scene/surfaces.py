@@ -19,7 +19,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..kernels.geometry import unit_cross
 from ..kernels.sampling import sample_cdf, triangle_point
@@ -40,7 +40,8 @@ MAX_PANES = 64   # panes of such glass a camera ray sees through
 SurfaceArrays = namedtuple("SurfaceArrays", [
     "tri_material",     # (nt,) int32 material of each triangle
     "albedo",           # (nm, 3) float64 albedo factor
-    "emission",         # (nm, 3) float64 emitted radiance L_e
+    "emission",         # (nm, 3) float64 emitted radiance L_e (the factor: times emit_texture where there is one)
+    "tri_emission",     # (nt, 3) float64 each triangle's mean L_e over its area (the emissive texture averaged)
     "double_sided",     # (nm,) bool
     "transmission",     # (nm,) float64 thin-glass transmission factor t (tint: t x albedo factor)
     "corners",          # (nt, 3, 3) float64 triangle corners
@@ -51,7 +52,9 @@ SurfaceArrays = namedtuple("SurfaceArrays", [
     "emitter_prob",     # (nt,) float64 probability of drawing each triangle by power (0: not an emitter)
     "tex_offset",       # (nm,) int64 first texel of a material's texture in tex_data (-1: none)
     "tex_size",         # (nm, 2) int64 texture width, height
-    "tex_data",         # (texels, 3) float32 linear albedo texels of every texture
+    "emit_offset",      # (nm,) int64 first texel of a material's emissive texture in tex_data (-1: none)
+    "emit_size",        # (nm, 2) int64 emissive texture width, height
+    "tex_data",         # (texels, 3) float32 linear texels of every albedo and emissive texture
     "uvs",              # (nt, 3, 2) float64 texture coordinates of the corners
     "light_kind",       # (nl,) int32 LIGHT_POINT | LIGHT_SPOT | LIGHT_DIRECTIONAL
     "light_pos",        # (nl, 3) float64
@@ -83,36 +86,46 @@ def pack(scene) -> Surfaces:
     area = scene.triangle_areas()
     mids = scene.material_ids
     emission = scene.emission.astype(np.float64)
+    # textures: one flat texel array, an offset and size per material (albedo, then emissive)
+    nm = len(scene.materials)
+    tex_offset, emit_offset = np.full(nm, -1, np.int64), np.full(nm, -1, np.int64)
+    tex_size, emit_size = np.zeros((nm, 2), np.int64), np.zeros((nm, 2), np.int64)
+    chunks, off = [], 0
+    for which, offsets, sizes in (("texture", tex_offset, tex_size), ("emission_texture", emit_offset, emit_size)):
+        for i, m in enumerate(scene.materials):
+            t = getattr(m, which)
+            if t is not None and scene.uvs is not None and (which == "texture" or emission[i].max() > 0):
+                h, w = t.shape[:2]
+                offsets[i], sizes[i] = off, (w, h)
+                chunks.append(t.reshape(-1, 3).astype(np.float32))
+                off += w * h
+    tex_data = np.concatenate(chunks) if chunks else np.zeros((1, 3), np.float32)
+    uvs = scene.uvs[scene.triangles].astype(np.float64) if scene.uvs is not None \
+        else np.zeros((len(area), 3, 2))
+    tri_emission = emission[mids]
+    textured = np.nonzero((emit_offset[mids] >= 0) & (area > 0))[0]
+    if len(textured):
+        tri_emission = tri_emission.copy()
+        tri_emission[textured] = _mean_emission(tri_emission[textured], emit_offset[mids[textured]],
+                                                emit_size[mids[textured]], tex_data, uvs[textured])
     sides = np.where(scene.double_sided[mids], 2.0, 1.0)
-    power = np.pi * emission[mids] * (area * sides)[:, None]           # (nt, 3)
+    power = np.pi * tri_emission * (area * sides)[:, None]           # (nt, 3)
     weight = power.sum(axis=1)
     emitters = np.nonzero(weight > 0)[0].astype(np.int32)
     cdf = np.cumsum(weight[emitters]) if len(emitters) else np.zeros(1)
     prob = np.zeros(len(area))
     if len(emitters):
         prob[emitters] = weight[emitters] / cdf[-1]
-    # textures: one flat texel array, an offset and size per material
-    tex_offset = np.full(len(scene.materials), -1, np.int64)
-    tex_size = np.zeros((len(scene.materials), 2), np.int64)
-    chunks, off = [], 0
-    for i, m in enumerate(scene.materials):
-        if m.texture is not None and scene.uvs is not None:
-            h, w = m.texture.shape[:2]
-            tex_offset[i], tex_size[i] = off, (w, h)
-            chunks.append(m.texture.reshape(-1, 3).astype(np.float32))
-            off += w * h
-    tex_data = np.concatenate(chunks) if chunks else np.zeros((1, 3), np.float32)
-    uvs = scene.uvs[scene.triangles].astype(np.float64) if scene.uvs is not None \
-        else np.zeros((len(area), 3, 2))
     lights = scene.lights
     sky = scene.sky
     sky_mode = SKY_NONE if sky is None else (SKY_HEMISPHERE if sky.hemisphere else SKY_SPHERE)
     arrays = SurfaceArrays(
         tri_material=mids.astype(np.int32), albedo=scene.albedo.astype(np.float64), emission=emission,
+        tri_emission=np.ascontiguousarray(tri_emission),
         double_sided=scene.double_sided, transmission=scene.transmission, corners=np.ascontiguousarray(corners), tri_area=area,
         tri_normal=_unit_normals(corners), emitters=emitters,
         emitter_cdf=cdf.astype(np.float64), emitter_prob=prob, tex_offset=tex_offset, tex_size=tex_size,
-        tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
+        emit_offset=emit_offset, emit_size=emit_size, tex_data=tex_data, uvs=np.ascontiguousarray(uvs),
         light_kind=np.array([LightKind.of(l.kind) for l in lights], np.int32),
         light_pos=np.array([l.position for l in lights], np.float64).reshape(-1, 3),
         light_dir=np.array([l.direction for l in lights], np.float64).reshape(-1, 3),
@@ -132,17 +145,17 @@ def _unit_normals(corners):
     return np.ascontiguousarray(np.divide(n, length, out=np.zeros_like(n), where=length > 0))
 
 
-@njit(cache=True)
-def albedo_at(surf, tri, b1, b2):
-    """Albedo (r, g, b) at barycentrics (b1, b2) of scene triangle `tri`:
-    the material factor times its texture (nearest texel, wrapped)."""
+@njit(cache=True, inline="always")
+def _textured(surf, factor, offset, size, tri, b1, b2):
+    """factor[mat] (r, g, b) of scene triangle `tri`'s material times its
+    texture at tex_data[offset[mat]:] (size[mat]: width, height; offset
+    -1: none), nearest texel, wrapped, at barycentrics (b1, b2)."""
     mat = surf.tri_material[tri]
-    alb = surf.albedo
-    r, g, b = alb[mat, 0], alb[mat, 1], alb[mat, 2]
-    off = surf.tex_offset[mat]
+    r, g, b = factor[mat, 0], factor[mat, 1], factor[mat, 2]
+    off = offset[mat]
     if off >= 0:
+        w, h = size[mat, 0], size[mat, 1]
         uv = surf.uvs
-        w, h = surf.tex_size[mat, 0], surf.tex_size[mat, 1]
         b0 = 1.0 - b1 - b2
         u = b0 * uv[tri, 0, 0] + b1 * uv[tri, 1, 0] + b2 * uv[tri, 2, 0]
         v = b0 * uv[tri, 0, 1] + b1 * uv[tri, 1, 1] + b2 * uv[tri, 2, 1]
@@ -151,6 +164,56 @@ def albedo_at(surf, tri, b1, b2):
         t = surf.tex_data[off + y * w + x]
         r, g, b = r * t[0], g * t[1], b * t[2]
     return r, g, b
+
+
+@njit(cache=True)
+def albedo_at(surf, tri, b1, b2):
+    """Albedo (r, g, b) at barycentrics (b1, b2) of scene triangle `tri`:
+    the material factor times its texture (nearest texel, wrapped)."""
+    return _textured(surf, surf.albedo, surf.tex_offset, surf.tex_size, tri, b1, b2)
+
+
+@njit(cache=True)
+def emission_at(surf, tri, b1, b2):
+    """Emitted radiance L_e (r, g, b) at barycentrics (b1, b2) of scene
+    triangle `tri`: the material's emissive factor times its emissive
+    texture (nearest texel, wrapped), the one definition the photons, the
+    direct VPLs, the path tracer and the views share."""
+    return _textured(surf, surf.emission, surf.emit_offset, surf.emit_size, tri, b1, b2)
+
+
+@njit(cache=True, parallel=True)
+def _mean_emission(factor, offset, size, tex_data, uvs):
+    """(n, 3) mean of factor x the nearest texel over each triangle (its
+    corners' texture coordinates uvs (n, 3, 2)): the R2 sequence mapped
+    onto the triangle, about 4 points per texel the triangle covers (256 to
+    65,536). The mean only weighs the triangles for sampling; each
+    sampled point carries its own texel's value over the triangle's
+    probability, so the emitted light is unbiased whatever its error."""
+    n = factor.shape[0]
+    out = np.zeros((n, 3))
+    for k in prange(n):
+        w, h = size[k, 0], size[k, 1]
+        du1, dv1 = uvs[k, 1, 0] - uvs[k, 0, 0], uvs[k, 1, 1] - uvs[k, 0, 1]
+        du2, dv2 = uvs[k, 2, 0] - uvs[k, 0, 0], uvs[k, 2, 1] - uvs[k, 0, 1]
+        texels = 0.5 * abs(du1 * dv2 - du2 * dv1) * w * h
+        m = int(min(max(4.0 * texels, 256.0), 65536.0))
+        s0 = s1 = s2 = 0.0
+        for i in range(m):
+            ra = 0.5 + i * 0.7548776662466927
+            rb = 0.5 + i * 0.5698402909980532
+            b1, b2 = triangle_point(ra - math.floor(ra), rb - math.floor(rb))
+            b0 = 1.0 - b1 - b2
+            u = b0 * uvs[k, 0, 0] + b1 * uvs[k, 1, 0] + b2 * uvs[k, 2, 0]
+            v = b0 * uvs[k, 0, 1] + b1 * uvs[k, 1, 1] + b2 * uvs[k, 2, 1]
+            x = int(math.floor((u - math.floor(u)) * w)) % w
+            y = int(math.floor((v - math.floor(v)) * h)) % h
+            t = tex_data[offset[k] + y * w + x]
+            s0 += t[0]
+            s1 += t[1]
+            s2 += t[2]
+        out[k, 0], out[k, 1], out[k, 2] = factor[k, 0] * s0 / m, factor[k, 1] * s1 / m, factor[k, 2] * s2 / m
+    return out
 
 
 @njit(cache=True)
@@ -164,8 +227,9 @@ def triangle_normal(corners, tri):
 
 @njit(cache=True)
 def _on_emitter(surf, k, u1, u2):
-    """(tri, px, py, pz, p_tri): emitter k's triangle, the point (u1, u2)
-    places uniformly on it, and that triangle's probability."""
+    """(tri, px, py, pz, p_tri, b1, b2): emitter k's triangle, the point
+    (u1, u2) places uniformly on it, that triangle's probability and the
+    point's barycentrics (for emission_at)."""
     tri = surf.emitters[k]
     b1, b2 = triangle_point(u1, u2)
     c = surf.corners
@@ -173,15 +237,17 @@ def _on_emitter(surf, k, u1, u2):
     px = b0 * c[tri, 0, 0] + b1 * c[tri, 1, 0] + b2 * c[tri, 2, 0]
     py = b0 * c[tri, 0, 1] + b1 * c[tri, 1, 1] + b2 * c[tri, 2, 1]
     pz = b0 * c[tri, 0, 2] + b1 * c[tri, 1, 2] + b2 * c[tri, 2, 2]
-    return tri, px, py, pz, surf.emitter_prob[tri]
+    return tri, px, py, pz, surf.emitter_prob[tri], b1, b2
 
 
 @njit(cache=True)
 def sample_emitter(surf, u_tri, u1, u2):
     """A point on the area emitters from three uniform numbers: the triangle
     drawn by power (u_tri), the point uniform on it (u1, u2). Returns
-    (tri, px, py, pz, p_tri): p_tri the probability of that triangle (the
-    point's density is p_tri / area)."""
+    (tri, px, py, pz, p_tri, b1, b2): p_tri the probability of that
+    triangle (the point's density is p_tri / area), (b1, b2) the point's
+    barycentrics. A point's power is pi emission_at(point) area / p_tri
+    per emitting side: an emissive texture's pattern, unbiased."""
     return _on_emitter(surf, sample_cdf(surf.emitter_cdf, u_tri), u1, u2)
 
 

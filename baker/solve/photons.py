@@ -37,8 +37,8 @@ from ..kernels.rng import STREAM_PHOTON_GLASS, STREAM_PHOTON_ROTATION, rand01
 from ..kernels.sampling import cosine_hemisphere, frame, sample_cdf
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.model import LightKind
-from ..scene.surfaces import (VOXEL_PASS, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, sample_emitter,
-                              sky_solid_angle, spot_falloff, triangle_normal)
+from ..scene.surfaces import (VOXEL_PASS, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, emission_at,
+                              sample_emitter, sky_solid_angle, spot_falloff, triangle_normal)
 from ..voxels.lookup import voxel_of_hit
 
 BATCH = 1 << 18         # photons per batch (a progress step)
@@ -70,23 +70,24 @@ def _qmc(i, dim, base, rot):
 def _emit(surf, i, rot, kind, j, power, eps, center, radius, guide, G):
     """Where photon i of light (kind, j) of power (3,) starts, where it
     goes, its power before the selection of the light (an area emitter:
-    its triangle's pi L_e area over the triangle's probability; a guided
-    sun: over its cell's; a spot: times its falloff) and the guide cell a
-    sun photon left from (-1 otherwise).
+    pi L_e at its point times its triangle's area over the triangle's
+    probability; a guided sun: over its cell's; a spot: times its
+    falloff) and the guide cell a sun photon left from (-1 otherwise).
     Returns (ox, oy, oz, dx, dy, dz, r, g, b, cell)."""
     if kind == LIGHT_AREA:
         # an area emitter triangle chosen by power, a point uniform on it, cosine-distributed
-        tri, ox, oy, oz, p_tri = sample_emitter(surf, _qmc(i, 1, 2, rot), _qmc(i, 2, 3, rot), _qmc(i, 3, 5, rot))
+        tri, ox, oy, oz, p_tri, b1, b2 = sample_emitter(surf, _qmc(i, 1, 2, rot), _qmc(i, 2, 3, rot),
+                                                        _qmc(i, 3, 5, rot))
         nx, ny, nz = triangle_normal(surf.corners, tri)
         mat = surf.tri_material[tri]
         sides = 2.0 if surf.double_sided[mat] else 1.0
         if sides == 2.0 and _qmc(i, 6, 13, rot) >= 0.5:
             nx, ny, nz = -nx, -ny, -nz
         dx, dy, dz, cos = cosine_hemisphere(_qmc(i, 4, 7, rot), _qmc(i, 5, 11, rot), nx, ny, nz)
-        # this triangle's power pi L_e area (x2 sides) over its probability
-        em = surf.emission[mat]
+        # pi L_e(point) area (x2 sides) over the triangle's probability: an emissive texture's pattern
+        er, eg, eb = emission_at(surf, tri, b1, b2)
         f = math.pi * surf.tri_area[tri] * sides / p_tri
-        return ox + eps * nx, oy + eps * ny, oz + eps * nz, dx, dy, dz, em[0] * f, em[1] * f, em[2] * f, -1
+        return ox + eps * nx, oy + eps * ny, oz + eps * nz, dx, dy, dz, er * f, eg * f, eb * f, -1
     if kind == LIGHT_DIRECTIONAL:
         # from the square [-radius, radius]^2 across the light, cell c of G x G drawn by the guide
         # table, the power divided by G^2 times its probability (unbiased where the table is positive)

@@ -1,7 +1,7 @@
-"""Texture-aware albedo of a piece: the base-colour texture averaged over
-the piece, not one sample (docs/design.md section 2); for a masked
-material, over the piece's points that are not cut out, and the share of
-them that are not (its coverage)."""
+"""Texture-aware albedo and emission of a piece: the base-colour and
+emissive textures averaged over the piece, not one sample (docs/design.md
+section 2); for a masked material, over the piece's points that are not
+cut out, and the share of them that are not (its coverage)."""
 import math
 from collections import namedtuple
 
@@ -10,7 +10,7 @@ from numba import njit, prange
 
 from ..kernels.bvh import PASS_MASK
 from ..kernels.traverse import cut_out
-from ..scene.surfaces import albedo_at
+from ..scene.surfaces import albedo_at, emission_at
 from .clip import side_axis
 
 # traverse.cut_out's tables in scene triangle order (scene/bvh.ray_passes with the identity order)
@@ -26,15 +26,17 @@ def mask_arrays(scene) -> MaskArrays:
 @njit(cache=True, parallel=True)
 def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samples):
     """Albedo (n, 3) of each piece averaged over the piece (docs/design.md
-    section 2: texture-aware, not one sample), and its coverage (n,): the
+    section 2: texture-aware, not one sample), its coverage (n,): the
     share of its points a mask does not cut out (the albedo is the mean
-    over the points that are not).
+    over the points that are not), and its emitted radiance L_e (n, 3)
+    averaged the same way.
     samples^2 points of the R2 low-discrepancy sequence (Roberts 2018; a
     regular grid aliases with regular textures) over the cell's face
     across the triangle's dominant axis, projected on the triangle's
     plane, keeping the points inside both the triangle and the cell."""
     n = piece_tri.shape[0]
     out = np.zeros((n, 3))
+    emit = np.zeros((n, 3))
     coverage = np.ones(n)
     for p in prange(n):
         t = piece_tri[p]
@@ -50,6 +52,7 @@ def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samp
         a11, a12, a21, a22 = e1[ia], e2[ia], e1[ja], e2[ja]
         det = a11 * a22 - a12 * a21
         sr = sg = sb = 0.0
+        er = eg = eb = 0.0
         cnt = 0
         hold = 0
         masked = masks.tri_pass[t] == PASS_MASK
@@ -77,14 +80,22 @@ def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samp
             sr += r
             sg += g
             sb += b
+            r, g, b = emission_at(surf, t, b1, b2)
+            er += r
+            eg += g
+            eb += b
             hold += 1
         if cnt == 0:  # a sliver between the sample points: the triangle's centre
             cnt = 1
             if not (masked and cut_out(masks, t, 1.0 / 3.0, 1.0 / 3.0)):
                 sr, sg, sb = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
+                er, eg, eb = emission_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
                 hold = 1
         if hold == 0:  # all cut out (the piece is left out of the voxels): the centre's albedo
             sr, sg, sb = albedo_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
-        out[p, 0], out[p, 1], out[p, 2] = sr / max(hold, 1), sg / max(hold, 1), sb / max(hold, 1)
+            er, eg, eb = emission_at(surf, t, 1.0 / 3.0, 1.0 / 3.0)
+        k = 1.0 / max(hold, 1)
+        out[p, 0], out[p, 1], out[p, 2] = sr * k, sg * k, sb * k
+        emit[p, 0], emit[p, 1], emit[p, 2] = er * k, eg * k, eb * k
         coverage[p] = hold / cnt
-    return out, coverage
+    return out, coverage, emit

@@ -287,9 +287,9 @@ def drop_passing(pieces: Pieces, piece_tri, scene, grid: Grid, surfaces=None) ->
     if masked.any():
         sel = np.nonzero(masked & ~drop)[0]
         surf = surfaces or pack(scene)
-        _, cover = textured_albedo(surf.arrays, mask_arrays(scene), scene.triangle_corners(),
-                                   piece_tri[sel].astype(np.int32), pieces.cell[sel].astype(np.int64), grid.origin,
-                                   grid.h, 4)
+        _, cover, _ = textured_albedo(surf.arrays, mask_arrays(scene), scene.triangle_corners(),
+                                      piece_tri[sel].astype(np.int32), pieces.cell[sel].astype(np.int64),
+                                      grid.origin, grid.h, 4)
         drop[sel] = cover < 1.0 - VOXEL_PASS
         scale = np.ones(len(pieces.area))
         scale[sel] = cover
@@ -445,20 +445,23 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
     cen = per_voxel(pieces.centroid)
     nrm = per_voxel(pieces.normal * pieces.area[:, None])
     mats = scene.material_ids[tri]
-    textured = (np.array([m.texture is not None for m in scene.materials]) & (scene.uvs is not None)) | \
-        np.array([m.masked for m in scene.materials])
+    has_uv = scene.uvs is not None
+    textured = (np.array([m.texture is not None or (m.emission_texture is not None and m.emission.max() > 0)
+                          for m in scene.materials]) & has_uv) | np.array([m.masked for m in scene.materials])
     # thin glass kept in the voxels (t < VOXEL_PASS) reflects what it does not transmit
     p_alb = scene.albedo.astype(np.float64)[mats] * (1.0 - scene.transmission[mats])[:, None]
+    p_emit = scene.emission.astype(np.float64)[mats]
     if textured[mats].any():
         from ..scene.surfaces import pack
         surf = surfaces or pack(scene)
         sel = np.nonzero(textured[mats])[0]
-        alb, _ = textured_albedo(surf.arrays, mask_arrays(scene), corners, tri[sel].astype(np.int32),
-                                 pieces.cell[sel].astype(np.int64), grid.origin, grid.h, 4)
+        alb, _, emit = textured_albedo(surf.arrays, mask_arrays(scene), corners, tri[sel].astype(np.int32),
+                                       pieces.cell[sel].astype(np.int64), grid.origin, grid.h, 4)
         p_alb[sel] = alb * (1.0 - scene.transmission[mats[sel]])[:, None]
+        p_emit[sel] = emit
     # a one-sided emitter's back is black: only the front side (sign +1) emits
     side_emits = (sides_sign[pieces.side] > 0) | scene.double_sided[mats]
-    p_em = np.pi * scene.emission.astype(np.float64)[mats] * side_emits[:, None]
+    p_em = np.pi * p_emit * side_emits[:, None]
     alb = per_voxel(p_alb * pieces.area[:, None])
     em = per_voxel(p_em * pieces.area[:, None])
     big = np.lexsort((-w, vox_of))  # the largest piece of each voxel first
