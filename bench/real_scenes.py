@@ -1,11 +1,28 @@
-"""Loading the real architectural scenes (../shared/realscenes/big and any
-files given): per scene, the load's wall time, its peak resident memory
+"""The real architectural scenes (../shared/realscenes/big and any files
+given), loaded and baked as a user runs them.
+
+Load table: per scene, the load's wall time, its peak resident memory
 (each scene loaded in a fresh process, so the figure is that load's own),
 and the triangles in the file and after the clean-up (degenerate and
 duplicate triangles dropped, coplanar overlaps cut), with the triangles
 cut and those left whole.
 
-    python bench/real_scenes.py [--runs N] [--json] [FILE ...]
+Bake table (--bake): per scene and preset (--presets, default preview and
+default), `voxbake bake` in a fresh process (the gazebo and the living
+room, which have no lamp, under --sky 1,1,1 and --sky 20.3,13.5,8.7, the
+living room's cosine-weighted mean of its environment map): the stages' seconds (load,
+voxel solve, texels), the whole command's wall time and peak resident
+memory, the lightmap pages; then the bake as our viewer shows it (the CPU
+view of the bake file, `voxbake render --method lightmap`) against the
+path tracer from the scene's camera at --res x --res (default 128) and
+--spp (default 1024, two seeds whose difference estimates the
+reference's own noise): luminance, the light sources' pixels (lamps, the
+sky through windows) left out; the mean ratio, the worst 8x8 block's
+ratio, the share of blocks within 10%, and the relative RMSE less the
+reference's noise. References are kept in bench/out/ (keyed by the
+file's SHA-256, the light, --res and --spp).
+
+    python bench/real_scenes.py [--runs N] [--bake] [--presets P,Q] [--spp N] [--res N] [--json] [FILE ...]
 """
 from __future__ import annotations
 
@@ -15,9 +32,12 @@ import os
 import subprocess
 import sys
 
-from common import ROOT, emit
+from common import ROOT, emit, rel_rmse
 
 BIG = os.path.join(ROOT, "..", "shared", "realscenes", "big")
+OUT = os.path.join(ROOT, "bench", "out")
+# the light a user gives a scene that has no lamp of its own
+LIGHT = {"gazebo.glb": ["--sky", "1,1,1"], "bitterli_living_room.glb": ["--sky", "20.3,13.5,8.7"]}
 
 CHILD = r"""
 import json, re, sys, time, warnings
@@ -48,20 +68,112 @@ print(len(parts["triangles"]))
 
 def run_child(code, path):
     """(stdout, peak resident MiB) of a fresh interpreter running `code`."""
-    p = subprocess.Popen([sys.executable, "-c", code, path], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         cwd=ROOT)
-    out = p.stdout.read()
-    err = p.stderr.read()
-    _, status, usage = os.wait4(p.pid, 0)
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{path}: {err.decode().strip().splitlines()[-1]}")
-    return out.decode(), usage.ru_maxrss / 1024
+    return run_command([sys.executable, "-c", code, path], path)
+
+
+def run_command(argv, what):
+    """(stdout, peak resident MiB) of a fresh process running argv (its
+    output through files: a bake's progress bars would fill a pipe)."""
+    import tempfile
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        p = subprocess.Popen(argv, stdout=out, stderr=err, cwd=ROOT)
+        _, status, usage = os.wait4(p.pid, 0)
+        p.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        text, problem = out.read().decode(), err.read().decode(errors="replace").strip()
+    if p.returncode != 0:
+        raise SystemExit(f"{what}: {problem.splitlines()[-1] if problem else f'exit {p.returncode}'}")
+    return text, usage.ru_maxrss / 1024
+
+
+def reference(path, light, res, spp):
+    """(image, relative noise) of the path tracer from the scene's camera:
+    two half-runs with their own seeds, averaged; the noise of the mean is
+    half the relative RMSE of their difference. Cached in bench/out/."""
+    import hashlib
+
+    import numpy as np
+    with open(path, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:16]
+    key = hashlib.sha256(repr((digest, light, res, spp)).encode()).hexdigest()[:16]
+    cache = os.path.join(OUT, f"realscene_ref_{os.path.basename(path)}_{key}.npz")
+    if os.path.exists(cache):
+        z = np.load(cache)
+        return z["image"], float(z["noise"]), float(z["seconds"])
+    import time
+    from baker import render
+    t = time.perf_counter()
+    scene, bvh, surf, cam = open_scene(path, light)
+    halves = [render(scene, cam, res, res, "pathtrace", spp=spp // 2, seed=s, bvh=bvh, surfaces=surf)
+              for s in (11, 12)]
+    seconds = time.perf_counter() - t
+    image = 0.5 * (halves[0].astype(np.float64) + halves[1])
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    m = (image @ lum).mean()
+    noise = float(np.sqrt(np.mean(((halves[0] - halves[1]).astype(np.float64) @ lum) ** 2)) / m / 2) if m > 0 else 0
+    os.makedirs(OUT, exist_ok=True)
+    np.savez_compressed(cache, image=image.astype(np.float32), noise=noise, seconds=seconds)
+    return image.astype(np.float32), noise, seconds
+
+
+def open_scene(path, light):
+    """(scene, bvh, surfaces, the scene's first camera) under `light`
+    (voxbake's --sky arguments or [])."""
+    import warnings
+
+    import numpy as np
+    from baker.errors import VoxgiWarning
+    from baker.scene import Sky, build_scene_bvh, camera_for, load_scene, pack
+    sky = Sky(np.array([float(v) for v in light[1].split(",")])) if light else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", VoxgiWarning)
+        scene = load_scene(path, sky=sky)
+    bvh = build_scene_bvh(scene)
+    return scene, bvh, pack(scene), camera_for(scene, None, bvh)
+
+
+def bake_row(path, preset, res, spp, tmp):
+    """One row of the bake table."""
+    import numpy as np
+    from baker.bake import read_bake, render_bake
+    from baker.render.compare import compare, lamp_pixels
+    light = LIGHT.get(os.path.basename(path), [])
+    out, stats = os.path.join(tmp, "bake.glb"), os.path.join(tmp, "stats.json")
+    import time
+    t = time.perf_counter()
+    _, peak = run_command([sys.executable, "-m", "baker", "bake", path, "-o", out, "--preset", preset, "--stats",
+                           stats, *light], f"{path} ({preset})")
+    wall = time.perf_counter() - t
+    with open(stats) as f:
+        st = json.load(f)
+    sec = {k: v["seconds"] for k, v in st["stages"].items()}
+    solve = sum(sec.get(k, 0.0) for k in ("bvh", "voxelize", "photons", "propagation"))
+    texels = sum(sec.get(k, 0.0) for k in ("charts", "lights", "texels", "atlas"))
+    ref, noise, _ = reference(path, light, res, spp)
+    scene, bvh, surf, cam = open_scene(path, light)
+    img = render_bake(read_bake(out), cam, res, res)
+    lamp = lamp_pixels(bvh, surf, cam, res, res)
+    c = compare(img, ref, lamp=lamp)
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    keep = ~lamp & ((ref @ lum) > 0)
+    err = rel_rmse(img[keep][None], ref[keep][None], np.zeros((1, int(keep.sum())), bool), noise)
+    worst = c.blocks[np.argmax(np.abs(c.blocks - 1))] if len(c.blocks) else 1.0
+    return [os.path.basename(path), preset, f"{sec.get('load', 0):.1f}", f"{solve:.1f}", f"{texels:.1f}",
+            f"{wall:.1f}", f"{peak:.0f}", st["counters"].get("pages", "-"), f"{c.mean:.3f}", f"{worst:.2f}",
+            f"{100 * c.within(0.10):.0f}%", f"{100 * err:.1f}", f"{100 * noise:.1f}"], img, ref
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("files", nargs="*", help="more scenes to load")
     ap.add_argument("--runs", type=int, default=3, help="loads per scene (the range is reported)")
+    ap.add_argument("--bake", action="store_true", help="bake every scene and compare it with the path tracer")
+    ap.add_argument("--no-load", action="store_true", help="leave out the load table")
+    ap.add_argument("--presets", default="preview,default", help="presets to bake at (comma-separated)")
+    ap.add_argument("--spp", type=int, default=1024, help="path tracer samples per pixel (the reference)")
+    ap.add_argument("--res", type=int, default=128, help="image side for the comparison")
+    ap.add_argument("--images", help="write each bake view and reference as PNG into this folder")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     files = sorted(os.path.join(BIG, f) for f in os.listdir(BIG) if f.endswith(".glb")) if os.path.isdir(BIG) \
@@ -69,6 +181,34 @@ def main():
     files += args.files
     if not files:
         raise SystemExit(f"no scenes: {BIG} is absent and no file was given")
+    if not args.no_load:
+        load_table(args, files)
+    if args.bake:
+        bake_table(args, files)
+
+
+def bake_table(args, files):
+    import tempfile
+    rows = []
+    for path in files:
+        for preset in args.presets.split(","):
+            with tempfile.TemporaryDirectory() as tmp:
+                row, img, ref = bake_row(path, preset, args.res, args.spp, tmp)
+            rows.append(row)
+            print(" | ".join(str(c) for c in row), file=sys.stderr)
+            if args.images:
+                from baker.render import write_image
+                os.makedirs(args.images, exist_ok=True)
+                stem = os.path.join(args.images, os.path.splitext(os.path.basename(path))[0])
+                write_image(f"{stem}_{preset}.png", img)
+                write_image(f"{stem}_pathtrace.png", ref)
+    emit(args, f"Baking real scenes: voxbake bake per preset, the bake's view against the path tracer ({args.spp} "
+               f"spp, {args.res}x{args.res})", rows,
+         ["scene", "preset", "load s", "solve s", "texels s", "total s", "peak MiB", "pages", "mean ratio",
+          "worst 8x8 block", "blocks within 10%", "rel. RMSE %", "reference noise %"])
+
+
+def load_table(args, files):
     rows = []
     for path in files:
         n_file = int(run_child(FILE_TRIANGLES, path)[0])

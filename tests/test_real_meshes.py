@@ -226,3 +226,26 @@ def test_lamp_pixels_are_the_emitters_in_view(cornell):
     assert not lamp[16:].any()  # the light is in the ceiling, the top half of the view
     down = make_camera("down", cam.position, (0, -1, 0.3), (0, 0, 1), cam.yfov)
     assert not lamp_pixels(bvh, surf, down, 32, 32).any()
+
+
+def test_lamp_pixels_take_the_sky_seen_through_glass(tmp_path):
+    """Under a sky, the pixels whose rays escape are light sources too (a
+    window shows the sky, the lightmap holds no light for it): directly
+    and through thin glass the voxels leave out; without a sky they are
+    not the lamp's."""
+    import numpy as np
+    from baker.scene import Sky, load_scene
+    from baker.scene.model import make_camera
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)),
+           b.material("floor", (0.5,) * 3))
+    b.mesh("pane", *quad((-2, 0, 1), (2, 0, 1), (2, 4, 1), (-2, 4, 1), facing=(0, 0, -1)),
+           b.material("glass", (0.9,) * 3, transmission=0.9))
+    b.save(tmp_path / "pane.glb")
+    cam = make_camera("c", (0.0, 1.0, -1.5), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), np.radians(60))
+    for sky in (None, Sky(np.ones(3))):
+        scene = load_scene(tmp_path / "pane.glb", sky=sky)
+        lamp = lamp_pixels(build_scene_bvh(scene), pack(scene), cam, 32, 32)
+        # the top rows look through the pane at the sky, the bottom rows at the floor
+        assert lamp[:4].all() == (sky is not None) and not lamp[-4:].any()

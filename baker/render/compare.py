@@ -5,7 +5,8 @@ any wall); the mean ratio, the ratio per block, and lit pixels that come
 out black.
 
 The lamp's pixels are found by the camera's own rays (`lamp_pixels`: a
-pixel any of whose 4 x 4 sub-pixel rays first meets an emitter), so a
+pixel any of whose 4 x 4 sub-pixel rays first meets an emitter or the
+sky, which a window shows but a lightmap does not hold), so a
 pixel the lamp's edge covers in part is the lamp's. Without that mask the
 brightest pixels and two rings of pixels around them stand in for the
 lamp, which is wrong where no lamp is in view (the brightest surface
@@ -19,7 +20,7 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUMINANCE
-from ..kernels.traverse import closest_hit
+from ..scene.surfaces import SKY_NONE, hit_past_glass
 from .camera import camera_array, primary_ray, subpixel
 
 
@@ -51,7 +52,8 @@ def lit_pixels(ref, lamp_rings: int = 2, lamp=None) -> np.ndarray:
 
 
 @njit(cache=True, parallel=True)
-def _emitter_cover(bvh, tri_material, emission, cam, width, height, per_axis, out):
+def _emitter_cover(bvh, surf, cam, width, height, per_axis, out):
+    sky = surf.sky_mode != SKY_NONE
     for k in prange(width * height):
         stack = np.empty(STACK_SIZE, np.int32)
         y = k // width
@@ -59,21 +61,25 @@ def _emitter_cover(bvh, tri_material, emission, cam, width, height, per_axis, ou
         for sub in range(per_axis * per_axis):
             fx, fy = subpixel(sub, per_axis)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
-            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
-            if j >= 0:
-                m = tri_material[bvh.tri_index[j]]
-                if emission[m, 0] + emission[m, 1] + emission[m, 2] > 0.0:
+            t, j, u, v, gr, gg, gb = hit_past_glass(bvh, surf, stack, ox, oy, oz, dx, dy, dz)
+            if j < 0:
+                if sky:
                     out[y, x] = True
                     break
+                continue
+            m = surf.tri_material[bvh.tri_index[j]]
+            if surf.emission[m, 0] + surf.emission[m, 1] + surf.emission[m, 2] > 0.0:
+                out[y, x] = True
+                break
 
 
 def lamp_pixels(bvh, surfaces, camera, width: int, height: int, per_axis: int = 4) -> np.ndarray:
     """(height, width) bool: the pixels of `camera`'s view (a Camera) some of
-    whose per_axis x per_axis sub-pixel rays first meet an emitter."""
+    whose per_axis x per_axis sub-pixel rays first meet a light source: an
+    emitter, or the sky (also through thin glass the voxels leave out)."""
     out = np.zeros((height, width), np.bool_)
-    a = surfaces.arrays
-    _emitter_cover(bvh.arrays, a.tri_material, a.emission, camera_array(camera, width, height), int(width),
-                   int(height), int(per_axis), out)
+    _emitter_cover(bvh.arrays, surfaces.arrays, camera_array(camera, width, height), int(width), int(height),
+                   int(per_axis), out)
     return out
 
 
