@@ -176,8 +176,9 @@ def main():
     ap.add_argument("--images", help="write each bake view and reference as PNG into this folder")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    files = sorted(os.path.join(BIG, f) for f in os.listdir(BIG) if f.endswith(".glb")) if os.path.isdir(BIG) \
-        else []
+    # smallest first: the quick rows come first
+    files = sorted((os.path.join(BIG, f) for f in os.listdir(BIG) if f.endswith(".glb")), key=os.path.getsize) \
+        if os.path.isdir(BIG) else []
     files += args.files
     if not files:
         raise SystemExit(f"no scenes: {BIG} is absent and no file was given")
