@@ -85,77 +85,91 @@ def cell_runs(order, key):
 
 
 @njit(cache=True)
-def side_signatures(order, runs, key, facing, area, centroid, normal, tol, patch):
+def side_signatures(order, runs, key, facing, area, centroid, normal, tol, patch, crowd, min_plane):
     """For pieces sorted by cell key (order), a signature per piece: bit i
     set when the piece lies in front of (beyond tol, grid units) the plane
     of the i-th piece of another facing and another smooth patch in the
     same cell, not facing back at it (within 25 degrees). Pieces of one
     facing with different signatures are cut apart by another surface
     crossing the cell (a wall standing on two floors) and must not merge
-    (docs/design.md section 4, straddling voxels). Cells with more than 63
-    pieces keep signature 0 for the excess planes."""
+    (docs/design.md section 4, straddling voxels). In a cell of more than
+    crowd pieces only pieces of at least min_plane cells^2 count (a wall
+    through a plant, not each leaf: voxelize.merge_clutter); at most 63
+    planes count per cell."""
     n = order.shape[0]
     sig = np.zeros(n, np.int64)
     for r in range(runs.shape[0] - 1):
         a, b = runs[r], runs[r + 1]
-        if b - a > 1:
-            for i in range(a, b):
-                p = order[i]
-                s = np.int64(0)
-                for j in range(a, min(b, a + 63)):
-                    q = order[j]
-                    if facing[q] == facing[p] or patch[q] == patch[p]:
-                        continue
-                    cos = normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2]
-                    if cos < SHEET_BACK_COS:
-                        continue  # the other face of a two-sided surface (curved: its pieces' planes differ)
-                    d = 0.0
-                    for c in range(3):
-                        d += (centroid[p, c] / area[p] - centroid[q, c] / area[q]) * normal[q, c]
-                    if d > tol:
-                        s |= np.int64(1) << np.int64(j - a)
-                sig[p] = s
+        if b - a < 2:
+            continue
+        planes = order[a:b]
+        if b - a > crowd:
+            planes = planes[area[planes] >= min_plane]
+        planes = planes[:63]
+        for i in range(a, b):
+            p = order[i]
+            s = np.int64(0)
+            for j in range(planes.shape[0]):
+                q = planes[j]
+                if facing[q] == facing[p] or patch[q] == patch[p]:
+                    continue
+                cos = normal[p, 0] * normal[q, 0] + normal[p, 1] * normal[q, 1] + normal[p, 2] * normal[q, 2]
+                if cos < SHEET_BACK_COS:
+                    continue  # the other face of a two-sided surface (curved: its pieces' planes differ)
+                d = 0.0
+                for c in range(3):
+                    d += (centroid[p, c] / area[p] - centroid[q, c] / area[q]) * normal[q, c]
+                if d > tol:
+                    s |= np.int64(1) << np.int64(j)
+            sig[p] = s
     return sig
 
 
 @njit(cache=True)
 def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
-                    min_part, patch):
+                    min_part, patch, crowd, min_cutter):
     """For each piece: the piece of another facing, triangle and smooth
     patch (patches.py) in the same cell, not facing back at it, whose plane cuts it into two parts
     of at least min_part cells^2 each (a floor running under a wall), else
-    -1. One cut per piece: the one that leaves the larger smaller part."""
+    -1. One cut per piece: the one that leaves the larger smaller part. In
+    a cell of more than crowd pieces only pieces of at least min_cutter
+    cells^2 cut (a wall through a plant, not each leaf through the others:
+    the pairs would cost crowd^2 clippings and the clutter merges anyway,
+    voxelize.merge_clutter)."""
     n = by_cell.shape[0]
     cut = np.full(n, -1, np.int64)
     for r in range(runs.shape[0] - 1):
         a, b = runs[r], runs[r + 1]
-        if b - a > 1:
-            for i in range(a, b):
-                p = by_cell[i]
-                best, best_part = -1, min_part
-                qx, qy, qz, m = piece_polygon(corners, piece_tri[p], origin, inv_h, piece_cell[p])
-                for j in range(a, b):
-                    q = by_cell[j]
-                    if facing[q] == facing[p] or piece_tri[q] == piece_tri[p] or patch[q] == patch[p]:
-                        continue
-                    nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
-                    if nx * normal[p, 0] + ny * normal[p, 1] + nz * normal[p, 2] < SHEET_BACK_COS:
-                        continue  # facing back within 25 degrees: the other face of a two-sided surface
-                    #             (a curved one: its triangles' planes differ a little), not a surface across
-                    d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
-                    lo, hi = np.inf, -np.inf
-                    for v in range(m):
-                        s = qx[v] * nx + qy[v] * ny + qz[v] * nz - d
-                        lo = min(lo, s)
-                        hi = max(hi, s)
-                    if lo >= 0.0 or hi <= 0.0:
-                        continue
-                    fx, fy, fz, fm = clip_plane(qx, qy, qz, m, nx, ny, nz, d, True)
-                    af, _, _, _ = area_centroid(fx, fy, fz, fm)
-                    part = min(af, area[p] - af)
-                    if part > best_part:
-                        best, best_part = q, part
-                cut[p] = best
+        if b - a < 2:
+            continue
+        cutters = by_cell[a:b]
+        if b - a > crowd:
+            cutters = cutters[area[cutters] >= min_cutter]
+        for i in range(a, b):
+            p = by_cell[i]
+            best, best_part = -1, min_part
+            qx, qy, qz, m = piece_polygon(corners, piece_tri[p], origin, inv_h, piece_cell[p])
+            for q in cutters:
+                if facing[q] == facing[p] or piece_tri[q] == piece_tri[p] or patch[q] == patch[p]:
+                    continue
+                nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
+                if nx * normal[p, 0] + ny * normal[p, 1] + nz * normal[p, 2] < SHEET_BACK_COS:
+                    continue  # facing back within 25 degrees: the other face of a two-sided surface
+                #             (a curved one: its triangles' planes differ a little), not a surface across
+                d = (centroid[q, 0] * nx + centroid[q, 1] * ny + centroid[q, 2] * nz) / area[q]
+                lo, hi = np.inf, -np.inf
+                for v in range(m):
+                    s = qx[v] * nx + qy[v] * ny + qz[v] * nz - d
+                    lo = min(lo, s)
+                    hi = max(hi, s)
+                if lo >= 0.0 or hi <= 0.0:
+                    continue
+                fx, fy, fz, fm = clip_plane(qx, qy, qz, m, nx, ny, nz, d, True)
+                af, _, _, _ = area_centroid(fx, fy, fz, fm)
+                part = min(af, area[p] - af)
+                if part > best_part:
+                    best, best_part = q, part
+            cut[p] = best
     return cut
 
 

@@ -27,6 +27,8 @@ area / h^2, never the bounding volume. The supercover of every triangle
 6. sheets: pieces merge into voxels per (cell, facing, sheet, side),
    and the pieces of one patch of one facing and side always merge
    (`group_pieces`);
+6b. clutter: a cell with more than CLUTTER_VOXELS voxels merges its small
+   ones per facing (`merge_clutter`): cost bounded per cell;
 7. sums: area, centroid, normal, albedo, emission per voxel (`voxel_sums`);
 8. lookup: (triangle side, cell) -> voxel, for photons and camera rays
    (`piece_lookup`).
@@ -46,7 +48,7 @@ from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separ
 from .clip import clip_pieces, count_candidates
 from ..scene.topology import triangle_adjacency
 from .patches import smooth_patches
-from .tolerances import (FLAT_COS, MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP,
+from .tolerances import (CLUTTER_AREA, CLUTTER_PIECES, CLUTTER_VOXELS, FLAT_COS, MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP,
                          SMOOTH_COS)
 
 BYTES_PER_CANDIDATE = 112  # pass-2 arrays per candidate cell (measured layout below)
@@ -320,7 +322,8 @@ def cut_straddlers(pieces: Pieces, piece_tri, corners, grid: Grid) -> Pieces:
     by_cell = np.argsort(key, kind="stable")
     inv_h = 1.0 / grid.h
     cut = find_straddlers(by_cell, cell_runs(by_cell, key), key, facing, piece_tri, pieces.cell, pieces.area,
-                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART, pieces.surface)
+                          pieces.centroid, pieces.normal, corners, grid.origin, inv_h, MIN_SPLIT_PART, pieces.surface,
+                          CLUTTER_PIECES, CLUTTER_AREA)
     n0 = len(pieces.area)
     split = np.nonzero(cut >= 0)[0]
     plane = np.zeros((n0 + len(split), 4))
@@ -392,7 +395,7 @@ def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs, two_sided):
     floor: the floor's top and the bottom's inner face coincide)."""
     along = pieces.centroid[np.arange(len(axis)), axis] / pieces.area
     sig = side_signatures(by_cell, runs, key, facing, pieces.area, pieces.centroid, pieces.normal, SHEET_GAP,
-                          pieces.surface)
+                          pieces.surface, CLUTTER_PIECES, CLUTTER_AREA)
     # the two parts of a cut piece never merge: fold the part into the signature; and a two-sided surface's
     # face keeps to its own surface
     group = _labels(sig, pieces.sign.astype(np.int64), np.where(two_sided, pieces.surface, -1))
@@ -405,13 +408,46 @@ def group_pieces(pieces: Pieces, key, facing, axis, by_cell, runs, two_sided):
     link = np.zeros(len(order), bool)
     link[1:] = np.logical_and.reduce([k[same][1:] == k[same][:-1] for k in keys])
     link[1:] &= vox_of[same][1:] != vox_of[same][:-1]  # only pairs in different voxels join anything
-    if not link.any():
+    if link.any():
+        root = join_voxels(vox_of, same, link)[vox_of]
+        _, first, inv = np.unique(root, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+        new_of = rank[inv.ravel()]
+        resort = np.argsort(new_of, kind="stable")
+        order, vox_of = order[resort], new_of[resort]
+    return merge_clutter(order, vox_of, key, facing, pieces.area)
+
+
+def merge_clutter(order, vox_of, key, facing, area, cap=CLUTTER_VOXELS, small=CLUTTER_AREA):
+    """Step 6b: bounds the voxels of a cell. A cell holding more than cap
+    voxels (a chandelier's thousands of tiny parts, a plant's leaves: every
+    part a sheet or a side of its own) keeps its voxels of at least small
+    cells^2 (a wall, a floor) and merges the others into one voxel per
+    facing; if that still leaves more than cap, every voxel of one facing
+    merges. Detail far below a cell cannot be resolved by the propagation,
+    and its cost grows with the voxels a line meets in a cell; the small
+    parts' light then spreads over their cell's side (the lightmap keeps
+    their own texels). Returns (order, vox_of) as group_pieces does."""
+    n = int(vox_of[-1]) + 1 if len(vox_of) else 0
+    starts = np.ones(len(vox_of), bool)
+    starts[1:] = vox_of[1:] != vox_of[:-1]
+    vkey, vface = key[order][starts], facing[order][starts].astype(np.int64)
+    varea = np.bincount(vox_of, weights=area[order], minlength=n)
+    _, cell_of, per_cell = np.unique(vkey, return_inverse=True, return_counts=True)
+    crowded = per_cell[cell_of] > cap
+    if not crowded.any():
         return order, vox_of
-    root = join_voxels(vox_of, same, link)[vox_of]
-    _, first, inv = np.unique(root, return_index=True, return_inverse=True)
-    rank = np.empty(len(first), np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
-    new_of = rank[inv.ravel()]
+    merge = crowded & (varea < small)
+    lab = np.where(merge, -1 - vface, np.arange(n))
+    kept = np.zeros(len(per_cell), np.int64)
+    np.add.at(kept, cell_of, lab >= 0)
+    merged_faces = np.zeros((len(per_cell), 6), bool)
+    merged_faces[cell_of[merge], vface[merge]] = True
+    over = kept + merged_faces.sum(axis=1) > cap  # the large voxels alone are too many: merge by facing alone
+    lab = np.where(over[cell_of], -1 - vface, lab)
+    label = _labels(vkey, lab)  # cell order kept: the key is the first column
+    new_of = label[vox_of]
     resort = np.argsort(new_of, kind="stable")
     return order[resort], new_of[resort]
 
@@ -477,9 +513,19 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
                 normal=np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0),
                 centroid=grid.origin + cen / area[:, None] * h, albedo=alb / area[:, None],
                 emission=em / area[:, None], material=material,
-                cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=pieces.sign[order][starts],
+                cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=_common_sign(pieces.sign[order],
+                                                                                                    starts),
                 two_sided=scene.double_sided[material].astype(bool),
                 planar=nl[:, 0] >= FLAT_COS * area)
+
+
+def _common_sign(sign, starts):
+    """Per voxel, the cut side its pieces (sorted by voxel, starts (m,)
+    marking each voxel's first) share, 0 where they differ (a merged
+    clutter voxel: merge_clutter)."""
+    first = np.flatnonzero(starts)
+    lo, hi = np.minimum.reduceat(sign, first), np.maximum.reduceat(sign, first)
+    return np.where(lo == hi, lo, 0).astype(sign.dtype)
 
 
 def piece_lookup(pieces: Pieces, key, order, vox_of, sides_tri, n_triangles):
