@@ -234,7 +234,7 @@ def _render_parser(sub):
 
 
 def _bake_parser(sub):
-    from .config import MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
+    from .config import MAX_INDIRECT_STRIDE, MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
     p = sub.add_parser("bake", help="bake lightmaps into a glTF file a viewer can walk through",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Bake a scene's diffuse global illumination into lightmaps and write a glTF\n"
@@ -264,6 +264,10 @@ def _bake_parser(sub):
                         "and a texel between shaded ones that agree within T (a share of the brightest) takes "
                         f"their mean; the others are shaded too (preset: {per_preset(lambda p: p.texel_interpolate)}"
                         "; 0: every texel shaded)")
+    p.add_argument("--texel-indirect-stride", type=integer(1, MAX_INDIRECT_STRIDE), metavar="S",
+                   help="lightcuts texels' bounced light, which varies slowly, is shaded on every S-th texel of "
+                        "every S-th row and interpolated between them; direct light is shaded at every texel "
+                        f"(preset: {per_preset(lambda p: p.texel_indirect_stride)}; 1: everything at every texel)")
     p.add_argument("--texels", choices=TEXEL_SOURCES,
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
     run_args(p)

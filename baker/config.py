@@ -118,6 +118,7 @@ class LightcutsConfig:
 UV_MODES = ("per-triangle", "xatlas")
 TEXEL_SOURCES = ("voxels", "lightcuts")
 MAX_TEXEL_SAMPLES = 8
+MAX_INDIRECT_STRIDE = 16
 
 
 @dataclass(frozen=True)
@@ -135,7 +136,14 @@ class BakeConfig:
     what is sharp, a difference from a neighbouring texel of more than this
     share of the larger; texel_interpolate: adaptive shading, texels
     between lattice texels that agree within this share of the largest
-    take their mean instead of being shaded (0: every texel shaded)."""
+    take their mean instead of being shaded (0: every texel shaded);
+    texel_indirect_stride: lightcuts texels' bounced light (the voxels'
+    VPLs), which varies slowly, is shaded on every stride-th texel of every
+    stride-th row of a map by its own cut of at most texel_indirect_cap
+    and interpolated bilinearly between them, while direct light (the
+    emitters' VPLs, punctual lights, the sky) is shaded at every texel and
+    anti-aliasing point (1: both together at every point, one cut of the
+    lightcuts' cap)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
@@ -145,6 +153,8 @@ class BakeConfig:
     texel_samples: int = 1
     texel_contrast: float = 0.1
     texel_interpolate: float = 0.0
+    texel_indirect_stride: int = 1
+    texel_indirect_cap: int = 4000
     preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
 
     def __post_init__(self):
@@ -155,6 +165,11 @@ class BakeConfig:
             raise ConfigError(f"texel contrast must lie in [0, 1) (got {self.texel_contrast})")
         if not 0 <= self.texel_interpolate < 1:
             raise ConfigError(f"texel interpolation must lie in [0, 1) (got {self.texel_interpolate})")
+        if not 1 <= self.texel_indirect_stride <= MAX_INDIRECT_STRIDE:
+            raise ConfigError(f"the bounced light's texel stride must lie in [1, {MAX_INDIRECT_STRIDE}] "
+                              f"(got {self.texel_indirect_stride})")
+        if self.texel_indirect_cap < 1:
+            raise ConfigError(f"the bounced light's cut cap must be >= 1 (got {self.texel_indirect_cap})")
         if self.uv not in UV_MODES:
             raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
         if self.texel_density is not None and not (math.isfinite(self.texel_density) and self.texel_density > 0):

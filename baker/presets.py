@@ -20,8 +20,9 @@ class Preset:
     reconstructed at each texel) or 'lightcuts'; texel_epsilon: the
     lightcuts error bound of a bake's texels; texel_samples,
     texel_contrast, texel_interpolate: the texels' anti-aliasing grid, what
-    counts as a sharp change, and adaptive shading's agreement
-    (config.BakeConfig)."""
+    counts as a sharp change, and adaptive shading's agreement;
+    texel_indirect_stride, texel_indirect_cap: the bounced light's sparse
+    lattice and its cuts' cap (config.BakeConfig)."""
     name: str
     about: str
     solver: SolverConfig
@@ -31,6 +32,8 @@ class Preset:
     texel_samples: int
     texel_contrast: float
     texel_interpolate: float
+    texel_indirect_stride: int = 1
+    texel_indirect_cap: int = 4000
 
 
 # Tuned by bench/tradeoff.py and bench/bake_error.py (bench/results/): the preview shows the voxels themselves,
@@ -47,12 +50,14 @@ PRESETS = {p.name: p for p in (
            SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-3,
                         max_bounces=64),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
-           texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2),
+           texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
+           texel_indirect_stride=2, texel_indirect_cap=4000),
     Preset("high", "finer voxels, more photons, directions and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-4, max_bounces=128),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
-           texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0),
+           texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
+           texel_indirect_stride=2, texel_indirect_cap=8000),
 )}
 
 
@@ -88,7 +93,7 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
 
 def bake_config(name="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
-                texel_interpolate=None, **solver_overrides) -> BakeConfig:
+                texel_interpolate=None, texel_indirect_stride=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
     bound; the rest as config.BakeConfig, solver_overrides as
@@ -107,6 +112,8 @@ def bake_config(name="default", uv="per-triangle", texel_density=None, texels=No
         int(texel_samples if texel_samples is not None else p.texel_samples),
         float(texel_contrast if texel_contrast is not None else p.texel_contrast),
         float(texel_interpolate if texel_interpolate is not None else p.texel_interpolate),
+        int(texel_indirect_stride if texel_indirect_stride is not None else p.texel_indirect_stride),
+        int(p.texel_indirect_cap),
         preview_lightcuts=lightcuts_config(name, seed=solver.seed))
 
 
@@ -123,5 +130,6 @@ def help_table() -> str:
                     f"{lc.epsilon:g}, cut <= {lc.cap:,}\n"
                     f"           a bake's texels from {p.texels}"
                     + (f" (epsilon {p.texel_epsilon:g}, {p.texel_samples}x{p.texel_samples} at edges, "
-                       f"interpolate {p.texel_interpolate:g})" if p.texels == "lightcuts" else ""))
+                       f"interpolate {p.texel_interpolate:g}, bounced light every {p.texel_indirect_stride} "
+                       f"texels, cut <= {p.texel_indirect_cap:,})" if p.texels == "lightcuts" else ""))
     return "presets:\n" + "\n".join(rows)

@@ -231,3 +231,40 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     assert not got[(i == s - 1) | (j == s - 1)].any()
     # a bright texel's neighbours are shaded, not interpolated
     assert not got[(j == 4) & (i == 5)].any() and not got[(j == 3) & (i == 5)].any()
+
+
+def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp_path):
+    """sparse_bounced on one 9 x 9 map of a floor (texel centres 1 apart,
+    z = 0) with a one-sided wall standing on it at x = 4.5: a bounced light
+    linear in the point (1 + x + 2y) left of the wall and 0 right of it.
+    Left of the wall the texels between lattice texels read the field
+    exactly (bilinear reproduces a linear field); right of it every texel
+    reads exactly 0 (the texel at x = 5 lies between the lattice columns 4
+    and 6, but the wall hides column 4 from it: it is shaded itself); and
+    fewer points are shaded than there are texels."""
+    from baker.lightmap.values import sparse_bounced
+    from baker.scene import build_scene_bvh, load_scene
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    w = b.material("w", (0.5,) * 3)
+    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
+    b.mesh("wall", *quad((4.5, -1, -1), (4.5, 9, -1), (4.5, 9, 1), (4.5, -1, 1), facing=(-1, 0, 0)), w)
+    b.save(tmp_path / "w.glb")
+    bvh = build_scene_bvh(load_scene(tmp_path / "w.glb"))
+    n = 9
+    j, i = np.divmod(np.arange(n * n), n)
+    point = np.stack([i, j, np.zeros(n * n)], axis=1).astype(np.float64)
+    normals = np.tile([0.0, 0.0, 1.0], (n * n, 1))
+    shaded = []
+
+    def field(p, nrm, floor):
+        shaded.append(len(p))
+        return np.where((p[:, 0] < 4.5)[:, None], (1 + p[:, 0] + 2 * p[:, 1])[:, None], 0.0) * np.ones(3)
+
+    ok = np.ones(n * n, bool)
+    out = sparse_bounced(field, bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]),
+                         np.array([n]), 2, 0.1)
+    left, right = point[:, 0] < 4.5, point[:, 0] > 4.5
+    np.testing.assert_allclose(out[left, 0], 1 + point[left, 0] + 2 * point[left, 1], rtol=1e-12)
+    assert out[right].max() == 0.0
+    assert sum(shaded) < 0.6 * n * n

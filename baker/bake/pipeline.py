@@ -99,6 +99,8 @@ def _meta(scene, config, solution, counts) -> dict:
             "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
             "texel_samples": config.texel_samples if config.lightcuts else 1,
             "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,
+            "texel_indirect": {"stride": config.texel_indirect_stride, "cap": config.texel_indirect_cap}
+            if config.lightcuts else None,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}

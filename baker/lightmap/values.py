@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels.colour import LUMINANCE
+from ..kernels.traverse import any_hit_batch
 from .atlas import Lightmaps
 from .charts import Charts, per_triangle_charts
 from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners,
@@ -26,6 +27,7 @@ LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
+SAME_PLANE_COS = 0.999  # sparse bounced light: a lattice texel whose normal is this close lies on the same surface
 STRIDE = 2          # adaptive shading: texels on this lattice are shaded first (a power of two)
 
 
@@ -160,10 +162,14 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
     texel_interpolate as `interpolate`)."""
-    from ..lights import irradiance
+    from ..lights import irradiance, split_lights
     from ..startup import checkpoint
     bvh, surfaces = prepared.bvh, prepared.surfaces
     epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed
+    stride = config.texel_indirect_stride
+    bounced = None
+    if stride > 1:   # direct light at every point, the bounced light on a sparse lattice (shade_bounced below)
+        lights, bounced = split_lights(lights, seed)
     samples, contrast, interpolate = config.texel_samples, config.texel_contrast, config.texel_interpolate
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
@@ -180,21 +186,30 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     values = np.zeros((len(point), 3))
     cuts, rays = [], [0]
 
-    def shade(pts, nrm, ok):
+    def shade(pts, nrm, ok, light=lights, floor=None, c_max=cap, exact=True, count=True):
         out = np.zeros((len(pts), 3))
         for a in range(0, len(pts), BATCH):
             b = slice(a, a + BATCH)
-            out[b], c, r = irradiance(lights, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, cap)
+            out[b], c, r = irradiance(light, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, c_max,
+                                      exact=exact, floor=None if floor is None else floor[b])
             cuts.append(c[ok[b]])
             rays[0] += int(r.sum())
             checkpoint()
-            if progress is not None:
+            if progress is not None and count:
                 progress(int(ok[b].sum()))
         return out
 
+    def shade_bounced(pts, nrm, floor):
+        """The bounced light at points whose direct light has luminance
+        `floor`: its cut's error is bounded against the whole."""
+        return shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
+
     if len(small):
         cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
-        cv = shade(cpts.reshape(-1, 3), cn, np.ones(3 * len(small), bool))
+        cp = cpts.reshape(-1, 3)
+        cv = shade(cp, cn, np.ones(3 * len(small), bool))
+        if bounced is not None:   # a sub-texel triangle's few corners: its bounced light there too
+            cv += shade_bounced(cp, cn, cv @ LUMINANCE)
         corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
     want = found & ~by_corners
     todo = np.nonzero(want)[0]
@@ -219,6 +234,12 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
             step //= 2
     else:
         values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+    indirect = np.zeros((len(point), 3))
+    if bounced is not None:
+        reach = np.inf if layout.per_triangle else 1.5 * stride * texel   # xatlas: another chart
+        indirect = sparse_bounced(shade_bounced, bvh.arrays, values, point, normals, want & ~inside,
+                                  (ttri >= 0) & ~inside, off, size, stride, lift, reach)
+        values += indirect
     aa = np.zeros(0, np.int64)
     if samples > 1:
         valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
@@ -237,13 +258,77 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
             n_ok = ok.reshape(-1, n_sub).sum(axis=1)
             mean = sub.reshape(-1, n_sub, 3).sum(axis=1) / np.maximum(n_ok, 1)[:, None]
             keep = n_ok > 0  # every sub-point hidden from the texel's own: its own value stays
-            values[aa[keep]] = mean[keep]
+            values[aa[keep]] = mean[keep] + indirect[aa[keep]]  # the sub-points' direct light, the texel's bounced
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
     stats = TexelStats(float(cuts.mean()) if len(cuts) else 0.0, int(cuts.max(initial=0)), rays[0], int(len(cuts)),
                        int(len(todo) - between.sum()), int(between.sum()), int(len(small)), int(len(aa)),
                        int(samples))
     return ts, stats
+
+
+def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off, size, stride, lift, reach=np.inf):
+    """(N, 3) the bounced light of the `want` texels, shaded on a sparse
+    lattice of each map and bilinear between. A map's lattice columns are
+    every stride-th one and its last (rows alike); a texel between them
+    takes the bilinear mean of the lattice texels around it (those of
+    positive weight), shaded for it wherever they are `usable` (a point on
+    the texel's triangle, not inside geometry: beyond a triangle's edge
+    too), when all of them are, lie on its plane within `reach` (an xatlas
+    page's neighbouring texel may be another chart) and are in sight of it
+    `lift` off the surface (nothing standing between, as a wall on a floor
+    triangle that runs under it); every other texel is shaded itself.
+    direct (N, 3): each texel's direct light, the floor of the cuts' error
+    bound (a lattice texel takes the largest of the texels it serves)."""
+    out = np.zeros((len(point), 3))
+    k = np.nonzero(want)[0]
+    if not len(k):
+        return out
+    m = np.searchsorted(off, k, side="right") - 1
+    s, q = size[m].astype(np.int64), k - off[m]
+    qi, qj = q % s, q // s
+    i0, j0 = qi - qi % stride, qj - qj % stride
+    i1, j1 = np.minimum(i0 + stride, s - 1), np.minimum(j0 + stride, s - 1)
+    fi = np.where(i1 > i0, (qi - i0) / np.maximum(i1 - i0, 1), 0.0)
+    fj = np.where(j1 > j0, (qj - j0) / np.maximum(j1 - j0, 1), 0.0)
+    lum = direct[k] @ LUMINANCE
+    corners = []
+    ok = np.ones(len(k), bool)
+    for ci, cj, w in ((i0, j0, (1 - fi) * (1 - fj)), (i1, j0, fi * (1 - fj)), (i0, j1, (1 - fi) * fj),
+                      (i1, j1, fi * fj)):
+        need = w > 0
+        idx = off[m] + cj * s + ci
+        same = usable[idx] & (np.einsum("ij,ij->i", normals[idx], normals[k]) >= SAME_PLANE_COS)
+        if np.isfinite(reach):
+            same &= np.linalg.norm(point[idx] - point[k], axis=1) <= reach
+        ok &= same | ~need
+        corners.append((idx, np.where(need, w, 0.0)))
+    # the texels between lattice texels in sight of them all (the lattice texels themselves: weight 1 on their own)
+    own = np.ones(len(k), bool)
+    for idx, w in corners:
+        own &= (w == 0) | (idx == k)
+    for idx, w in corners:
+        sel = np.nonzero(ok & ~own & (w > 0))[0]
+        a = point[k[sel]] + lift * normals[k[sel]]
+        d = point[idx[sel]] + lift * normals[idx[sel]] - a
+        dist = np.linalg.norm(d, axis=1)
+        ok[sel[any_hit_batch(bvh, a, d / np.maximum(dist, 1e-300)[:, None], 0.0, dist)]] = False
+    need_at = np.zeros(len(point), bool)
+    floor = np.zeros(len(point))
+    for idx, w in corners:
+        sel = ok & (w > 0)
+        need_at[idx[sel]] = True
+        np.maximum.at(floor, idx[sel], lum[sel])
+    need_at[k[~ok]] = True   # the texels shaded themselves
+    floor[k[~ok]] = lum[~ok]
+    at = np.nonzero(need_at)[0]
+    got = np.zeros((len(point), 3))
+    got[at] = shade_bounced(point[at], normals[at], floor[at])
+    acc = np.zeros((len(k), 3))
+    for idx, w in corners:
+        acc += np.where(ok, w, 0.0)[:, None] * got[idx]
+    out[k] = np.where(ok[:, None], acc, got[k])
+    return out
 
 
 def corner_points(layout, corners):

@@ -3,7 +3,7 @@ scene's emitters (vpl.py), the light tree over them (lighttree.py) and
 lightcuts at shading points (lightcuts.py); docs/design.md sections 6-7."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,12 +50,31 @@ def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -
     return Lights(vpls, tree, np.ascontiguousarray(vpls.normal[m:], np.float64))
 
 
+def split_lights(lights: Lights, seed=0) -> tuple[Lights, Lights | None]:
+    """(direct, bounced): the emitters' VPLs and the sky, and the voxels'
+    VPLs alone (None: there are none), each with its own tree. A point's
+    irradiance is the sum of the two; shade the bounced part with
+    exact=False (no punctual lights: they belong to the direct part)."""
+    v = lights.vpls
+    direct = v.select(~v.indirect)
+    m = int(np.sum(direct.kind != KIND_DIRECTIONAL)) if lights.sky is not None else len(direct)
+    d = Lights(direct, build_tree(direct.subset(m), seed) if m else None, lights.sky)
+    if not v.indirect.any():
+        return d, None
+    bounced = v.select(v.indirect)
+    return d, Lights(bounced, build_tree(bounced, seed), None)
+
+
 def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offset=1e-4, epsilon=0.02, cap=1000,
-               brute=False, near=True):
+               brute=False, near=True, exact=True, floor=None):
     """H (N, 3) float64 at points with unit normals (the side that
     receives), plus cut sizes and shadow rays per point. near: area VPLs
     near a point are integrated over their patch (lightcuts.vpl_g; off:
-    the bounded point form throughout, as the viewer's GPU preview)."""
+    the bounded point form throughout, as the viewer's GPU preview).
+    exact: the scene's punctual lights are included (off: the VPLs and
+    the sky's directions alone); floor (N,): the luminance of irradiance
+    each point gets from elsewhere, which the cuts' error is bounded
+    against besides their own (split_lights)."""
     points = np.ascontiguousarray(points, np.float64)
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
@@ -66,11 +85,14 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     if t is None:
         t = LightTree(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.zeros((1, 3)),
                       np.zeros(1), np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int8))
+    if not exact:
+        surfaces = replace(surfaces, arrays=surfaces.arrays._replace(light_kind=np.zeros(0, np.int32)))
+    floor = np.zeros(len(points)) if floor is None else np.ascontiguousarray(floor, np.float64)
     patch = np.where(v.indirect & (v.kind == KIND_AREA), v.area, 0.0) if near else np.zeros(len(v))
     tree = tree_arrays(t, node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
     return shade_points(bvh.arrays, surfaces.arrays, tree, VPLArrays(v.kind, v.position, v.normal, v.area, v.power,
                                                                      patch),
-                        sky, points, normals, valid, float(offset), float(epsilon), int(cap), bool(brute))
+                        sky, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute))
 
 
 def tree_arrays(tree: LightTree, patch) -> TreeArrays:
@@ -91,4 +113,4 @@ def tree_arrays(tree: LightTree, patch) -> TreeArrays:
 
 __all__ = ["KIND_AREA", "KIND_DIRECTIONAL", "LightTree", "Lights", "VPLs",
            "brute_force", "build_lights", "build_tree", "concat", "direct_vpls", "indirect_vpls", "irradiance",
-           "lightcut", "make_vpls", "ordered_vpls", "sky_vpls"]
+           "lightcut", "make_vpls", "ordered_vpls", "sky_vpls", "split_lights"]

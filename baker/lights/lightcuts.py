@@ -433,7 +433,7 @@ CHUNK = 64  # shading points per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, offset, epsilon, cap, brute):
+def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, floors, offset, epsilon, cap, brute):
     """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
     (where valid): lightcuts over the tree (TreeArrays) of the VPLs
     (VPLArrays; brute: every VPL) plus the scene's punctual lights, exact,
@@ -471,7 +471,7 @@ def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, offset, eps
                     cuts[k] = vpls.kind.shape[0]
                     rays[k] += vpls.kind.shape[0]
                 else:
-                    floor = LUM_R * h0 + LUM_G * h1 + LUM_B * h2
+                    floor = LUM_R * h0 + LUM_G * h1 + LUM_B * h2 + floors[k]
                     c0, c1, c2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz), offset, epsilon,
                                                 cap, heap, floor)
                     cuts[k] = c

@@ -53,6 +53,10 @@ class VPLs:
         """The first m VPLs."""
         return VPLs(*(getattr(self, f)[:m] for f in ("kind", "position", "normal", "power", "area", "indirect")))
 
+    def select(self, mask) -> "VPLs":
+        """The VPLs where mask (n,) bool is set, in their order."""
+        return VPLs(*(getattr(self, f)[mask] for f in ("kind", "position", "normal", "power", "area", "indirect")))
+
     def counts(self) -> dict:
         d = (self.kind == KIND_AREA) & ~self.indirect
         return {"vpls": len(self), "vpls_direct": int(d.sum()), "vpls_indirect": int(self.indirect.sum()),
