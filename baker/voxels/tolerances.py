@@ -3,7 +3,7 @@ voxelization and by the propagation's visibility rule alike. Lengths and
 areas in cells (grid units); cosines between unit normals.
 """
 
-CLUTTER_VOXELS = 12      # a cell with more voxels than this merges its small ones by facing (voxelize.merge_clutter)
+CLUTTER_VOXELS = 512     # a cell with more voxels than this merges its small ones by facing (voxelize.merge_clutter)
 CLUTTER_PIECES = 64      # a cell with more pieces than this is cut only by its large ones (cells.find_straddlers)
 CLUTTER_AREA = 0.25      # cells^2: a crowded cell's voxels at least this large keep to themselves
 SHEET_GAP = 0.1          # pieces of one facing on planes further apart than this are separate voxels (sheets)

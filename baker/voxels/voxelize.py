@@ -428,7 +428,11 @@ def merge_clutter(order, vox_of, key, facing, area, cap=CLUTTER_VOXELS, small=CL
     merges. Detail far below a cell cannot be resolved by the propagation,
     and its cost grows with the voxels a line meets in a cell; the small
     parts' light then spreads over their cell's side (the lightmap keeps
-    their own texels). Returns (order, vox_of) as group_pieces does."""
+    their own texels). The cap is high because a merged voxel gathers as
+    if none of its parts shadowed another (a plant's inner leaves lit
+    like its outer ones): merging at 12 voxels made the living room's
+    plants, and the room with them, 20% too bright. Returns (order,
+    vox_of) as group_pieces does."""
     n = int(vox_of[-1]) + 1 if len(vox_of) else 0
     starts = np.ones(len(vox_of), bool)
     starts[1:] = vox_of[1:] != vox_of[:-1]
