@@ -69,7 +69,10 @@ def test_bake_refuses_bad_settings(tmp_path):
               "argument --texel-density: must be a finite number above 0"),
              (["-o", tmp_path / "x.glb", "--uv", "atlas"], "invalid choice"),
              (["-o", tmp_path / "x.glb", "--texel-samples", "0"], "argument --texel-samples: must lie in 1..8"),
-             (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "argument --texel-samples: must lie in 1..8")]
+             (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "argument --texel-samples: must lie in 1..8"),
+             (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "0"],
+              "argument --texel-indirect-stride: must lie in 1..16"),
+             (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "nan"], "argument --texel-indirect-stride")]
     for args, message in cases:
         refused(*cli("bake", "cornell_box", *args)[::2], message)
     assert os.listdir(tmp_path) == []
