@@ -265,8 +265,9 @@ def _bake_parser(sub):
                         f"their mean; the others are shaded too (preset: {per_preset(lambda p: p.texel_interpolate)}"
                         "; 0: every texel shaded)")
     p.add_argument("--texel-indirect-stride", type=integer(1, MAX_INDIRECT_STRIDE), metavar="S",
-                   help="lightcuts texels' bounced light, which varies slowly, is shaded on every S-th texel of "
-                        "every S-th row and interpolated between them; direct light is shaded at every texel "
+                   help="lightcuts texels' bounced light and sky light, which vary slowly, are shaded on every "
+                        "S-th texel of every S-th row and interpolated between them where they agree; the lamps' "
+                        "and punctual lights' at every texel "
                         f"(preset: {per_preset(lambda p: p.texel_indirect_stride)}; 1: everything at every texel)")
     p.add_argument("--texels", choices=TEXEL_SOURCES,
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")

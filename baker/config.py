@@ -34,7 +34,9 @@ class SolverConfig:
         neighbours on the same surface that agree with it within this many
         standard deviations of the photon noise (0: off).
     tolerance: stop when the power of the newly arrived radiosity falls
-        below tolerance times that of the first bounce.
+        below tolerance times that of the first bounce; the bounces left
+        are added as the geometric series of the last two (a bounce cap
+        stops without it).
     max_bounces: bounce cap (counting the photon bounce as 1).
     seed: random seed (the same seed gives the same solution for any
         thread count).
@@ -137,12 +139,13 @@ class BakeConfig:
     share of the larger; texel_interpolate: adaptive shading, texels
     between lattice texels that agree within this share of the largest
     take their mean instead of being shaded (0: every texel shaded);
-    texel_indirect_stride: lightcuts texels' bounced light (the voxels'
-    VPLs), which varies slowly, is shaded on every stride-th texel of every
-    stride-th row of a map by its own cut of at most texel_indirect_cap
-    and interpolated bilinearly between them, while direct light (the
-    emitters' VPLs, punctual lights, the sky) is shaded at every texel and
-    anti-aliasing point (1: both together at every point, one cut of the
+    texel_indirect_stride: lightcuts texels' smooth light (the voxels'
+    VPLs and the sky), which varies slowly, is shaded on every stride-th
+    texel of every stride-th row of a map (the bounced light by its own
+    cut of at most texel_indirect_cap) and interpolated bilinearly between
+    them where they agree within texel_contrast, while the sharp light
+    (the emitters' VPLs, punctual lights) is shaded at every texel and
+    anti-aliasing point (1: all together at every point, one cut of the
     lightcuts' cap)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"

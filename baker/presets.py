@@ -22,7 +22,8 @@ class Preset:
     texel_contrast, texel_interpolate: the texels' anti-aliasing grid, what
     counts as a sharp change, and adaptive shading's agreement;
     texel_indirect_stride, texel_indirect_cap: the bounced light's sparse
-    lattice and its cuts' cap (config.BakeConfig)."""
+    lattice and its cuts' cap (config.BakeConfig); texel_cap: the cap of
+    the texels' cuts of the emitters' light (None: the lightcuts')."""
     name: str
     about: str
     solver: SolverConfig
@@ -34,6 +35,7 @@ class Preset:
     texel_interpolate: float
     texel_indirect_stride: int = 1
     texel_indirect_cap: int = 4000
+    texel_cap: int | None = None
 
 
 # Tuned by bench/tradeoff.py and bench/bake_error.py (bench/results/): the preview shows the voxels themselves,
@@ -47,14 +49,14 @@ PRESETS = {p.name: p for p in (
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
            texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0),
     Preset("default", "texels shaded by lightcuts over the voxels' VPLs, shadow edges anti-aliased",
-           SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-3,
+           SolverConfig(surface_cells=25_000, radius=8, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-2,
                         max_bounces=64),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
-           texel_indirect_stride=2, texel_indirect_cap=4000),
+           texel_indirect_stride=2, texel_indirect_cap=1000, texel_cap=400),
     Preset("high", "finer voxels, more photons, directions and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
-                        tolerance=1e-4, max_bounces=128),
+                        tolerance=1e-3, max_bounces=128),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
            texel_indirect_stride=2, texel_indirect_cap=8000),
@@ -104,7 +106,8 @@ def bake_config(name="default", uv="per-triangle", texel_density=None, texels=No
         raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
     solver = solver_config(name, **solver_overrides)
     texel_lightcuts = lightcuts_config(name, epsilon=epsilon if epsilon is not None else p.texel_epsilon,
-                                       direct_vpls=direct_vpls, seed=solver.seed)
+                                       direct_vpls=direct_vpls, seed=solver.seed,
+                                       cap=p.texel_cap if p.texel_cap is not None else p.lightcuts.cap)
     if preview_vpls is None or preview_vpls < 0:
         raise ConfigError(f"the preview's VPL count must be >= 0 (got {preview_vpls})")
     return BakeConfig(
@@ -130,6 +133,7 @@ def help_table() -> str:
                     f"{lc.epsilon:g}, cut <= {lc.cap:,}\n"
                     f"           a bake's texels from {p.texels}"
                     + (f" (epsilon {p.texel_epsilon:g}, {p.texel_samples}x{p.texel_samples} at edges, "
-                       f"interpolate {p.texel_interpolate:g}, bounced light every {p.texel_indirect_stride} "
-                       f"texels, cut <= {p.texel_indirect_cap:,})" if p.texels == "lightcuts" else ""))
+                       f"cut <= {p.texel_cap or lc.cap:,}, interpolate {p.texel_interpolate:g}, bounced light and "
+                       f"sky every {p.texel_indirect_stride} texels, cut <= {p.texel_indirect_cap:,})"
+                       if p.texels == "lightcuts" else ""))
     return "presets:\n" + "\n".join(rows)

@@ -51,15 +51,6 @@ def hold_interrupts():
         signal.signal(signal.SIGTERM, _note)
 
 
-def release_interrupts():
-    """Puts Python's own Ctrl-C handling back."""
-    if threading.current_thread() is threading.main_thread():
-        if signal.getsignal(signal.SIGINT) is _note:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-        if signal.getsignal(signal.SIGTERM) is _note:
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def checkpoint():
     """Raises KeyboardInterrupt here if Ctrl-C was noted: call it where
     stopping leaves nothing half-done."""
@@ -118,5 +109,5 @@ def run(func, *args):
                 print("interrupted: nothing was written", file=sys.stderr)
                 return exit_status()
             raise
-        finally:
-            release_interrupts()
+        # Ctrl-C stays noted until the process exits: Python's own handler put back here, one arriving before
+        # the exit would kill the process by the signal (exit -2, neither 0 nor 130)

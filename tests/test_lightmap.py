@@ -268,3 +268,41 @@ def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp
     np.testing.assert_allclose(out[left, 0], 1 + point[left, 0] + 2 * point[left, 1], rtol=1e-12)
     assert out[right].max() == 0.0
     assert sum(shaded) < 0.6 * n * n
+
+
+
+def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_path):
+    """sparse_bounced with agree > 0 on one 9 x 9 map of an open plane: a
+    light of 1 with a step to 3 from x = 4.5 on. The texels whose lattice
+    texels span the step (x = 5, between columns 4 and 6) are shaded
+    themselves and read the field exactly; the texels between agreeing
+    lattice texels are interpolated (the field is constant there: exact
+    too); without the check (agree 0) the texels at x = 5 take the
+    lattice's mean, 2."""
+    from baker.lightmap.values import sparse_bounced
+    from baker.scene import build_scene_bvh, load_scene
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    w = b.material("w", (0.5,) * 3)
+    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
+    b.save(tmp_path / "f.glb")
+    bvh = build_scene_bvh(load_scene(tmp_path / "f.glb"))
+    n = 9
+    j, i = np.divmod(np.arange(n * n), n)
+    point = np.stack([i, j, np.zeros(n * n)], axis=1).astype(np.float64)
+    normals = np.tile([0.0, 0.0, 1.0], (n * n, 1))
+    shaded = []
+
+    def field(p, nrm, floor):
+        shaded.append(p.copy())
+        return np.where((p[:, 0] > 4.5)[:, None], 3.0, 1.0) * np.ones(3)
+
+    ok = np.ones(n * n, bool)
+    args = (bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]), np.array([n]), 2, 0.1)
+    out = sparse_bounced(field, *args, agree=0.2)
+    np.testing.assert_array_equal(out[:, 0], np.where(point[:, 0] > 4.5, 3.0, 1.0))
+    got = np.concatenate(shaded)
+    assert np.isin(5.0, got[:, 0]) and len(got) < 0.8 * n * n
+    shaded.clear()
+    plain = sparse_bounced(field, *args)
+    assert np.all(plain[point[:, 0] == 5, 0] == 2.0)

@@ -30,6 +30,19 @@ def test_furnace_box(make_scene, rho):
     assert sol.stop_reason.startswith("tolerance")
 
 
+def test_a_loose_tolerance_extrapolates_the_bounces_it_leaves(make_scene):
+    """Stopped at a tolerance of 10% of the first bounce, the furnace (rho
+    0.8: B = E / (1 - rho); the bounces taken sum to 1 - rho^(k + 1) of it,
+    under 96%) is still exact within 1%: the bounces left are added as the
+    geometric series of the last two."""
+    rho = 0.8
+    scene = make_scene(furnace_box(albedo=rho, emission=1.0), f"sfb_tail_{rho}")
+    sol = solve(scene, solver_config("default", resolution=8, photons=1_000_000, radius=4, tolerance=0.1))
+    assert "extrapolated" in sol.stop_reason
+    assert 1 - rho ** (sol.bounces + 1) < 0.96   # what the bounces taken sum to
+    assert abs(area_mean(sol, sol.radiosity[:, 0]) * (1 - rho) - 1) < 0.01
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("rho", [0.5, 0.8])
 def test_furnace_sphere(make_scene, rho):

@@ -304,13 +304,14 @@ def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texe
 
 
 @njit(cache=True, parallel=True)
-def contrast_texels(lum, valid, point, map_off, map_size, reach, contrast):
-    """(N,) bool: valid texels whose luminance differs from a valid
-    4-neighbour in their map (whose point lies within `reach` scene units:
+def contrast_texels(lum, scale, valid, point, map_off, map_size, reach, contrast):
+    """(N,) bool: valid texels whose luminance lum differs from a valid
+    4-neighbour's in their map (whose point lies within `reach` scene units:
     a neighbour across a chart boundary on an xatlas page is another
-    surface) by more than `contrast` of the larger of the two: the texels
-    where a shadow's edge or a contact crosses the texel, which a single
-    point per texel aliases."""
+    surface) by more than `contrast` of the larger of the two texels'
+    `scale` (the luminance of all their light, of which lum may be a part):
+    the texels where a shadow's edge or a contact crosses the texel, which
+    a single point per texel aliases."""
     out = np.zeros(lum.shape[0], np.bool_)
     r2 = reach * reach
     for c in prange(map_size.shape[0]):
@@ -330,7 +331,7 @@ def contrast_texels(lum, valid, point, map_off, map_size, reach, contrast):
                         d += (point[k, a] - point[kk, a]) ** 2
                     if d > r2:
                         continue
-                    if abs(lum[k] - lum[kk]) > contrast * max(lum[k], lum[kk]):
+                    if abs(lum[k] - lum[kk]) > contrast * max(scale[k], scale[kk]):
                         out[k] = True
                         break
     return out

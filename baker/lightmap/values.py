@@ -158,6 +158,11 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     over their square instead (samples 1: off; texels.sub_texel_points;
     grid points beyond the triangle on a coplanar one that continues the
     surface are taken there, not clamped onto the shared edge).
+    With texel_indirect_stride > 1 all this is the sharp part of the light
+    (the emitters' VPLs, punctual lights), and the smooth part (the
+    voxels' VPLs, the sky: split_lights) is shaded on a sparse lattice
+    (sparse_bounced), a sub-texel triangle's at its centroid; the sharp
+    part's edges alone call for anti-aliasing.
 
     config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
@@ -168,7 +173,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed
     stride = config.texel_indirect_stride
     bounced = None
-    if stride > 1:   # direct light at every point, the bounced light on a sparse lattice (shade_bounced below)
+    if stride > 1:   # sharp light at every point, the smooth light on a sparse lattice (shade_bounced below)
         lights, bounced = split_lights(lights, seed)
     samples, contrast, interpolate = config.texel_samples, config.texel_contrast, config.texel_interpolate
     h = float(solution.voxels.cell_size)
@@ -200,7 +205,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         return out
 
     def shade_bounced(pts, nrm, floor):
-        """The bounced light at points whose direct light has luminance
+        """The smooth light at points whose sharp light has luminance
         `floor`: its cut's error is bounded against the whole."""
         return shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
 
@@ -208,8 +213,10 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
         cp = cpts.reshape(-1, 3)
         cv = shade(cp, cn, np.ones(3 * len(small), bool))
-        if bounced is not None:   # a sub-texel triangle's few corners: its bounced light there too
-            cv += shade_bounced(cp, cn, cv @ LUMINANCE)
+        if bounced is not None:   # a sub-texel triangle's smooth light: once, at its centroid
+            cn1 = cn.reshape(-1, 3, 3)[:, 0]
+            cv = cv.reshape(-1, 3, 3)
+            cv += shade_bounced(cpts.mean(axis=1), cn1, (cv @ LUMINANCE).max(axis=1))[:, None, :]
         corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
     want = found & ~by_corners
     todo = np.nonzero(want)[0]
@@ -238,13 +245,15 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     if bounced is not None:
         reach = np.inf if layout.per_triangle else 1.5 * stride * texel   # xatlas: another chart
         indirect = sparse_bounced(shade_bounced, bvh.arrays, values, point, normals, want & ~inside,
-                                  (ttri >= 0) & ~inside, off, size, stride, lift, reach)
-        values += indirect
+                                  (ttri >= 0) & ~inside, off, size, stride, lift, reach, float(contrast))
     aa = np.zeros(0, np.int64)
     if samples > 1:
+        # the sharp part's edges (the smooth part is the texel's own: slow by construction, shaded apart)
         valid = found & ~inside & ~by_corners    # interpolated texels: no point of their own to refine
         reach = np.inf if layout.per_triangle else 2.5 * texel  # an xatlas page's neighbour may be another chart
-        aa = np.nonzero(contrast_texels(values @ LUMINANCE, valid, point, off, size, reach, float(contrast)))[0]
+        lum = values @ LUMINANCE
+        aa = np.nonzero(contrast_texels(lum, lum + indirect @ LUMINANCE, valid, point, off, size, reach,
+                                        float(contrast)))[0]
         if len(aa):
             m = np.searchsorted(off, aa, side="right") - 1
             per = layout.per_triangle
@@ -258,7 +267,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
             n_ok = ok.reshape(-1, n_sub).sum(axis=1)
             mean = sub.reshape(-1, n_sub, 3).sum(axis=1) / np.maximum(n_ok, 1)[:, None]
             keep = n_ok > 0  # every sub-point hidden from the texel's own: its own value stays
-            values[aa[keep]] = mean[keep] + indirect[aa[keep]]  # the sub-points' direct light, the texel's bounced
+            values[aa[keep]] = mean[keep]
+    values += indirect   # the sub-points' sharp light, the texel's smooth light
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
     stats = TexelStats(float(cuts.mean()) if len(cuts) else 0.0, int(cuts.max(initial=0)), rays[0], int(len(cuts)),
@@ -267,19 +277,24 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     return ts, stats
 
 
-def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off, size, stride, lift, reach=np.inf):
-    """(N, 3) the bounced light of the `want` texels, shaded on a sparse
-    lattice of each map and bilinear between. A map's lattice columns are
-    every stride-th one and its last (rows alike); a texel between them
-    takes the bilinear mean of the lattice texels around it (those of
-    positive weight), shaded for it wherever they are `usable` (a point on
-    the texel's triangle, not inside geometry: beyond a triangle's edge
-    too), when all of them are, lie on its plane within `reach` (an xatlas
-    page's neighbouring texel may be another chart) and are in sight of it
-    `lift` off the surface (nothing standing between, as a wall on a floor
-    triangle that runs under it); every other texel is shaded itself.
-    direct (N, 3): each texel's direct light, the floor of the cuts' error
-    bound (a lattice texel takes the largest of the texels it serves)."""
+def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off, size, stride, lift, reach=np.inf,
+                   agree=0.0):
+    """(N, 3) the smooth light (bounced, and the sky's: split_lights) of
+    the `want` texels, shaded on a sparse lattice of each map and bilinear
+    between. A map's lattice columns are every stride-th one and its last
+    (rows alike); a texel between them takes the bilinear mean of the
+    lattice texels around it (those of positive weight), shaded for it
+    wherever they are `usable` (a point on the texel's triangle, not inside
+    geometry: beyond a triangle's edge too), when all of them are, lie on
+    its plane within `reach` (an xatlas page's neighbouring texel may be
+    another chart), are in sight of it `lift` off the surface (nothing
+    standing between, as a wall on a floor triangle that runs under it)
+    and, with agree > 0, agree: their luminances spread by at most `agree`
+    of the largest plus the texel's direct light (a contact's occlusion
+    falls off faster than a bilinear lattice follows); every other texel
+    is shaded itself. direct (N, 3): each texel's direct light, the floor
+    of the cuts' error bound (a lattice texel takes the largest of the
+    texels it serves)."""
     out = np.zeros((len(point), 3))
     k = np.nonzero(want)[0]
     if not len(k):
@@ -324,6 +339,17 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
     at = np.nonzero(need_at)[0]
     got = np.zeros((len(point), 3))
     got[at] = shade_bounced(point[at], normals[at], floor[at])
+    if agree > 0:
+        between = ok & ~own
+        g = got @ LUMINANCE
+        hi, lo = np.zeros(len(k)), np.full(len(k), np.inf)
+        for idx, w in corners:
+            hi = np.where(w > 0, np.maximum(hi, g[idx]), hi)
+            lo = np.where(w > 0, np.minimum(lo, g[idx]), lo)
+        bad = np.nonzero(between & (hi - lo > agree * (hi + lum)))[0]
+        if len(bad):
+            got[k[bad]] = shade_bounced(point[k[bad]], normals[k[bad]], lum[bad])
+            ok[bad] = False
     acc = np.zeros((len(k), 3))
     for idx, w in corners:
         acc += np.where(ok, w, 0.0)[:, None] * got[idx]

@@ -8,9 +8,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..config import LightcutsConfig
-from .lightcuts import TreeArrays, VPLArrays, brute_force, lightcut, node_patches, shade_points
+from .lightcuts import SkyCells, TreeArrays, VPLArrays, brute_force, lightcut, node_patches, shade_points
 from .lighttree import LightTree, build_tree
 from .ordered import ordered_vpls
+from ..scene.surfaces import SKY_HEMISPHERE
 from .vpl import KIND_AREA, KIND_DIRECTIONAL, VPLs, concat, direct_vpls, indirect_vpls, make_vpls, sky_vpls
 
 
@@ -51,22 +52,33 @@ def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -
 
 
 def split_lights(lights: Lights, seed=0) -> tuple[Lights, Lights | None]:
-    """(direct, bounced): the emitters' VPLs and the sky, and the voxels'
-    VPLs alone (None: there are none), each with its own tree. A point's
-    irradiance is the sum of the two; shade the bounced part with
-    exact=False (no punctual lights: they belong to the direct part)."""
+    """(sharp, smooth), each with its own tree: the emitters' VPLs alone,
+    and the voxels' VPLs with the sky's directions (None: neither). The
+    smooth part varies slowly over a surface (bounced light, and the sky's,
+    whose every shadow is an ambient occlusion's penumbra), so a bake
+    shades it on a sparse lattice (lightmap.values.sparse_bounced). A
+    point's irradiance is the sum of the two; shade the smooth part with
+    exact=False (no punctual lights: they belong to the sharp part). Where
+    lights.sky is None (the sky's directions are VPLs of its tree), the
+    sky stays with the sharp part."""
     v = lights.vpls
-    direct = v.select(~v.indirect)
-    m = int(np.sum(direct.kind != KIND_DIRECTIONAL)) if lights.sky is not None else len(direct)
-    d = Lights(direct, build_tree(direct.subset(m), seed) if m else None, lights.sky)
-    if not v.indirect.any():
+    if lights.sky is None:
+        direct = v.select(~v.indirect)
+        d = Lights(direct, build_tree(direct, seed) if len(direct) else None, None)
+        sky = None
+    else:
+        direct = v.select(~v.indirect & (v.kind != KIND_DIRECTIONAL))
+        d = Lights(direct, build_tree(direct, seed) if len(direct) else None, None)
+        sky = lights.sky if len(lights.sky) else None
+    if not v.indirect.any() and sky is None:
         return d, None
     bounced = v.select(v.indirect)
-    return d, Lights(bounced, build_tree(bounced, seed), None)
+    return d, Lights(bounced, build_tree(bounced, seed) if len(bounced) else None,
+                     np.zeros((0, 3)) if sky is None else sky)
 
 
 def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offset=1e-4, epsilon=0.02, cap=1000,
-               brute=False, near=True, exact=True, floor=None):
+               brute=False, near=True, exact=True, floor=None, adaptive_sky=True):
     """H (N, 3) float64 at points with unit normals (the side that
     receives), plus cut sizes and shadow rays per point. near: area VPLs
     near a point are integrated over their patch (lightcuts.vpl_g; off:
@@ -74,7 +86,9 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     exact: the scene's punctual lights are included (off: the VPLs and
     the sky's directions alone); floor (N,): the luminance of irradiance
     each point gets from elsewhere, which the cuts' error is bounded
-    against besides their own (split_lights)."""
+    against besides their own (split_lights); adaptive_sky: the sky
+    by a ray per cell of its directions where they agree
+    (lightcuts.sky_light; off: a ray along every direction)."""
     points = np.ascontiguousarray(points, np.float64)
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
@@ -87,12 +101,62 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
                       np.zeros(1), np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int8))
     if not exact:
         surfaces = replace(surfaces, arrays=surfaces.arrays._replace(light_kind=np.zeros(0, np.int32)))
+    a = surfaces.arrays
+    cells = sky_cells(sky, a.sky_up, a.sky_mode == SKY_HEMISPHERE, SKY_CELL if adaptive_sky else 1)
     floor = np.zeros(len(points)) if floor is None else np.ascontiguousarray(floor, np.float64)
     patch = np.where(v.indirect & (v.kind == KIND_AREA), v.area, 0.0) if near else np.zeros(len(v))
     tree = tree_arrays(t, node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
     return shade_points(bvh.arrays, surfaces.arrays, tree, VPLArrays(v.kind, v.position, v.normal, v.area, v.power,
                                                                      patch),
-                        sky, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute))
+                        cells, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute))
+
+
+SKY_CELL = 8     # the sky's directions per cell of the adaptive sky (lightcuts.sky_light)
+NEIGHBOURS = 8   # a sky cell's nearest cells that count as its neighbours (about its Voronoi neighbours)
+
+
+def sky_cells(dirs, up, hemisphere, per_cell=SKY_CELL) -> SkyCells:
+    """The sky's directions (K, 3) grouped into C = K / per_cell compact
+    cells: C centres stratified over the sky's domain (a Fibonacci lattice
+    on the upper hemisphere about `up`, or the sphere), each direction in
+    the cell of its nearest centre; a cell's neighbours are the cells whose
+    centres are among each other's NEIGHBOURS nearest; its representative
+    its direction nearest its centre. per_cell 1 or C < 4: every direction
+    its own cell, without neighbours."""
+    dirs = np.ascontiguousarray(dirs, np.float64)
+    k = len(dirs)
+    n_cells = k // max(int(per_cell), 1)
+    if per_cell <= 1 or n_cells < 4:
+        return SkyCells(dirs, np.arange(k + 1, dtype=np.int64), np.arange(k, dtype=np.int64),
+                        np.full((k, 1), -1, np.int64))
+    up = np.asarray(up, np.float64) / np.linalg.norm(up)
+    t = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 0.0, 1.0])
+    t /= np.linalg.norm(t)
+    b = np.cross(up, t)
+    i = np.arange(n_cells) + 0.5
+    z = 1.0 - i / n_cells if hemisphere else 1.0 - 2.0 * i / n_cells   # uniform in solid angle
+    phi = i * np.pi * (3.0 - np.sqrt(5.0))
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    centre = (r * np.cos(phi))[:, None] * t + (r * np.sin(phi))[:, None] * b + z[:, None] * up
+    cell = np.argmax(dirs @ centre.T, axis=1)
+    order = np.lexsort((np.arange(k), cell))
+    counts = np.bincount(cell, minlength=n_cells)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    sorted_dirs = dirs[order]
+    rep = np.full(n_cells, -1, np.int64)
+    for c in np.nonzero(counts)[0]:
+        rep[c] = start[c] + int(np.argmax(sorted_dirs[start[c]:start[c + 1]] @ centre[c]))
+    near = np.argsort(-(centre @ centre.T), axis=1, kind="stable")[:, 1:NEIGHBOURS + 1]
+    adj = np.zeros((n_cells, n_cells), bool)
+    adj[np.repeat(np.arange(n_cells), near.shape[1]), near.ravel()] = True
+    adj |= adj.T
+    adj &= (counts > 0)[None, :]
+    width = max(1, int(adj.sum(axis=1).max()))
+    nbr = np.full((n_cells, width), -1, np.int64)
+    for c in range(n_cells):
+        o = np.nonzero(adj[c])[0]
+        nbr[c, :len(o)] = o
+    return SkyCells(sorted_dirs, start, rep, nbr)
 
 
 def tree_arrays(tree: LightTree, patch) -> TreeArrays:
@@ -112,5 +176,5 @@ def tree_arrays(tree: LightTree, patch) -> TreeArrays:
 
 
 __all__ = ["KIND_AREA", "KIND_DIRECTIONAL", "LightTree", "Lights", "VPLs",
-           "brute_force", "build_lights", "build_tree", "concat", "direct_vpls", "indirect_vpls", "irradiance",
-           "lightcut", "make_vpls", "ordered_vpls", "sky_vpls", "split_lights"]
+           "SkyCells", "brute_force", "build_lights", "build_tree", "concat", "direct_vpls", "indirect_vpls",
+           "irradiance", "lightcut", "make_vpls", "ordered_vpls", "sky_cells", "sky_vpls", "split_lights"]

@@ -35,6 +35,11 @@ from .vpl import KIND_DIRECTIONAL
 # none, the point form throughout).
 TreeArrays = namedtuple("TreeArrays", ["lo", "hi", "axis", "cos", "power", "lum", "rep", "right", "kind", "patch"])
 VPLArrays = namedtuple("VPLArrays", ["kind", "position", "normal", "area", "power", "patch"])
+# The sky's directions grouped into cells of neighbouring directions (lights.sky_cells): dirs (K, 3) sorted by
+# cell, cell c's directions dirs[start[c]:start[c + 1]], its representative rep[c] (an index into dirs; -1:
+# empty cell) and its neighbouring cells nbr[c] (-1: none). One direction per cell and no neighbours: a ray
+# along every direction.
+SkyCells = namedtuple("SkyCells", ["dirs", "start", "rep", "nbr"])
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of an area VPL (it lies on a surface)
 NEAR, FAR = 2.0, 3.0  # a voxel's VPL nearer than NEAR x sqrt(A) takes its patch's form factor; by FAR, the point form
@@ -222,7 +227,7 @@ def node_bound(tree, node, p, n):
             s_sum = sa * cc + ca * sc
             # the sum lies in [0, 2 pi]: below a right angle when its cosine and its sine are both positive (a
             # cone wider than a hemisphere, far from n, has a sum past 3 pi / 2: cosine positive, sine negative)
-            if ca * cc - sa * sc > 0.0 and s_sum > 0.0:
+            if ca * cc - sa * sc > 0.0 and s_sum >= 0.0:
                 sn = min(1.0, s_sum)
         z = zmax + rr * sn
         if z <= 0.0:
@@ -389,15 +394,27 @@ def brute_force(bvh, stack, vpls, p, n, offset):
 
 
 @njit(cache=True)
-def sky_light(bvh, stack, surf, sky, px, py, pz, nx, ny, nz, offset):
+def sky_light(bvh, stack, surf, cells, seen, px, py, pz, nx, ny, nz, offset):
     """Irradiance (r, g, b) at p (normal n) from the sky, and the rays
-    cast: one visibility ray along each direction of sky (K, 3), a fixed
-    set stratified over the sky's domain (the same for every point: no
-    noise from point to point), weighted by its cosine. The ratio form
+    cast: the sky's directions (SkyCells: a fixed set stratified over its
+    domain, the same for every point, so no noise from point to point),
+    each weighted by its cosine, with the ratio form
     E = L E0(n) sum(cos T) / sum(cos), E0 the unoccluded integral of the
     cosine over the sky's domain (pi, or pi (1 + n.up) / 2 for a
-    hemisphere), is exact wherever nothing blocks the sky, at any K."""
+    hemisphere): exact wherever nothing blocks the sky, at any K.
+    Adaptive: one visibility ray per cell first (its representative's);
+    a cell whose representative lies above the point's horizon and sees
+    what the representatives of its neighbours above it see takes that for
+    all its directions above the horizon, every other cell casts a ray
+    along each of its directions above it. The open sky and a wall's inside cost a ray per cell, an
+    occluder's outline a ray per direction near it; an occluder that slips
+    between the representatives of a cell and all its neighbours is missed
+    (its share of the cosine is below a cell's, 1/C of the sky's).
+    seen (C, 4): scratch, per cell its representative's transmittance and
+    its state (0: wholly below the horizon, 1: its representative above
+    it, 2: its representative below, some direction above)."""
     mode = surf.sky_mode
+    sky = cells.dirs
     if mode == SKY_NONE or sky.shape[0] == 0:
         return 0.0, 0.0, 0.0, 0
     L = surf.sky_radiance
@@ -412,17 +429,47 @@ def sky_light(bvh, stack, surf, sky, px, py, pz, nx, ny, nz, offset):
     ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
     w = a0 = a1 = a2 = 0.0
     rays = 0
-    for k in range(sky.shape[0]):
-        dx, dy, dz = sky[k, 0], sky[k, 1], sky[k, 2]
-        c = nx * dx + ny * dy + nz * dz
-        if c <= COS_MIN:
+    n_cells = cells.start.shape[0] - 1
+    for c in range(n_cells):
+        above = 0
+        for k in range(cells.start[c], cells.start[c + 1]):
+            if nx * sky[k, 0] + ny * sky[k, 1] + nz * sky[k, 2] > COS_MIN:
+                above += 1
+        r = cells.rep[c]
+        seen[c, 3] = 0.0
+        if above > 0:
+            seen[c, 3] = 1.0 if nx * sky[r, 0] + ny * sky[r, 1] + nz * sky[r, 2] > COS_MIN else 2.0
+        if seen[c, 3] == 1.0:
+            seen[c, 0], seen[c, 1], seen[c, 2] = transmittance(bvh, stack, ox, oy, oz, sky[r, 0], sky[r, 1],
+                                                               sky[r, 2], 0.0, np.inf)
+            rays += 1
+    for c in range(n_cells):
+        if seen[c, 3] == 0.0:
             continue
-        w += c
-        rays += 1
-        tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
-        a0 += c * tr
-        a1 += c * tg
-        a2 += c * tb
+        same = seen[c, 3] == 1.0
+        if same:
+            for e in range(cells.nbr.shape[1]):
+                o = cells.nbr[c, e]
+                if o < 0 or seen[o, 3] != 1.0:
+                    continue
+                if (abs(seen[o, 0] - seen[c, 0]) > 1e-6 or abs(seen[o, 1] - seen[c, 1]) > 1e-6
+                        or abs(seen[o, 2] - seen[c, 2]) > 1e-6):
+                    same = False
+                    break
+        for k in range(cells.start[c], cells.start[c + 1]):
+            dx, dy, dz = sky[k, 0], sky[k, 1], sky[k, 2]
+            cs = nx * dx + ny * dy + nz * dz
+            if cs <= COS_MIN:
+                continue
+            w += cs
+            if same or k == cells.rep[c] and seen[c, 3] == 1.0:
+                tr, tg, tb = seen[c, 0], seen[c, 1], seen[c, 2]
+            else:
+                tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+                rays += 1
+            a0 += cs * tr
+            a1 += cs * tg
+            a2 += cs * tb
     if w <= 0.0:
         return 0.0, 0.0, 0.0, rays
     s = e0 / w
@@ -433,11 +480,11 @@ CHUNK = 64  # shading points per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, floors, offset, epsilon, cap, brute):
+def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, offset, epsilon, cap, brute):
     """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
     (where valid): lightcuts over the tree (TreeArrays) of the VPLs
     (VPLArrays; brute: every VPL) plus the scene's punctual lights, exact,
-    and the sky along the directions sky (K, 3) (sky_light; K = 0: the
+    and the sky along its directions (SkyCells, sky_light; none: the
     sky, if any, is among the VPLs); cut size (N,) and shadow rays (N,)."""
     n = points.shape[0]
     out = np.zeros((n, 3))
@@ -447,13 +494,14 @@ def shade_points(bvh, surf, tree, vpls, sky, points, normals, valid, floors, off
     for ch in prange((n + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
         heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 3)))
+        seen = np.empty((cells.start.shape[0], 4))
         for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
             if not valid[k]:
                 continue
             px, py, pz = points[k, 0], points[k, 1], points[k, 2]
             nx, ny, nz = normals[k, 0], normals[k, 1], normals[k, 2]
             # the exact parts first: their sum is the floor the cut's error is bounded against
-            h0, h1, h2, r = sky_light(bvh, stack, surf, sky, px, py, pz, nx, ny, nz, offset)
+            h0, h1, h2, r = sky_light(bvh, stack, surf, cells, seen, px, py, pz, nx, ny, nz, offset)
             rays[k] += r
             for i in range(n_lights):
                 lr, lg, lb, dx, dy, dz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)

@@ -62,6 +62,7 @@ class Solution:
 
 
 MIN_POOL_AREA = 0.25  # in cells^2: smaller voxels pool their photons with a neighbour
+MAX_TAIL_RATIO = 0.95  # the extrapolated tail's ratio at most: 19 times the last bounce
 
 
 def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=None):
@@ -152,6 +153,13 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
                 bbar.set_postfix(new=f"{pk / p1:.2e}")
                 if pk <= config.tolerance * p1:
                     stop = f"tolerance ({pk / p1:.2e} <= {config.tolerance:g} of the first bounce)"
+                    q = pk / bounce_power[-2] if bounce_power[-2] > 0 else 0.0
+                    if 0.0 < q < 1.0:
+                        # the bounces not propagated, as the geometric series of the last two: by then each
+                        # bounce is the one before times the scene's mean reflectance, near enough
+                        q = min(q, MAX_TAIL_RATIO)
+                        total += hk * (q / (1.0 - q))
+                        stop += f", the rest extrapolated (ratio {q:.3f})"
                     break
     elif p1 > 0:
         stop = "bounce cap (1)"
