@@ -233,6 +233,24 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     assert not got[(j == 4) & (i == 5)].any() and not got[(j == 3) & (i == 5)].any()
 
 
+def _floor_map(tmp_path, wall=False, n=9):
+    """A floor quad (z = 0, facing +z; with wall, a one-sided wall standing
+    on it at x = 4.5 facing -x), its BVH, and one n x n map's texel points
+    on it (centres 1 apart from the origin) with their normals."""
+    from baker.scene import build_scene_bvh, load_scene
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    w = b.material("w", (0.5,) * 3)
+    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
+    if wall:
+        b.mesh("wall", *quad((4.5, -1, -1), (4.5, 9, -1), (4.5, 9, 1), (4.5, -1, 1), facing=(-1, 0, 0)), w)
+    b.save(tmp_path / "f.glb")
+    bvh = build_scene_bvh(load_scene(tmp_path / "f.glb"))
+    j, i = np.divmod(np.arange(n * n), n)
+    point = np.stack([i, j, np.zeros(n * n)], axis=1).astype(np.float64)
+    return bvh, point, np.tile([0.0, 0.0, 1.0], (n * n, 1))
+
+
 def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp_path):
     """sparse_bounced on one 9 x 9 map of a floor (texel centres 1 apart,
     z = 0) with a one-sided wall standing on it at x = 4.5: a bounced light
@@ -243,18 +261,8 @@ def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp
     and 6, but the wall hides column 4 from it: it is shaded itself); and
     fewer points are shaded than there are texels."""
     from baker.lightmap.values import sparse_bounced
-    from baker.scene import build_scene_bvh, load_scene
-    from scenes.generate import GltfBuilder, quad
-    b = GltfBuilder()
-    w = b.material("w", (0.5,) * 3)
-    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
-    b.mesh("wall", *quad((4.5, -1, -1), (4.5, 9, -1), (4.5, 9, 1), (4.5, -1, 1), facing=(-1, 0, 0)), w)
-    b.save(tmp_path / "w.glb")
-    bvh = build_scene_bvh(load_scene(tmp_path / "w.glb"))
     n = 9
-    j, i = np.divmod(np.arange(n * n), n)
-    point = np.stack([i, j, np.zeros(n * n)], axis=1).astype(np.float64)
-    normals = np.tile([0.0, 0.0, 1.0], (n * n, 1))
+    bvh, point, normals = _floor_map(tmp_path, wall=True, n=n)
     shaded = []
 
     def field(p, nrm, floor):
@@ -270,7 +278,6 @@ def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp
     assert sum(shaded) < 0.6 * n * n
 
 
-
 def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_path):
     """sparse_bounced with agree > 0 on one 9 x 9 map of an open plane: a
     light of 1 with a step to 3 from x = 4.5 on. The texels whose lattice
@@ -280,17 +287,8 @@ def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_p
     too); without the check (agree 0) the texels at x = 5 take the
     lattice's mean, 2."""
     from baker.lightmap.values import sparse_bounced
-    from baker.scene import build_scene_bvh, load_scene
-    from scenes.generate import GltfBuilder, quad
-    b = GltfBuilder()
-    w = b.material("w", (0.5,) * 3)
-    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
-    b.save(tmp_path / "f.glb")
-    bvh = build_scene_bvh(load_scene(tmp_path / "f.glb"))
     n = 9
-    j, i = np.divmod(np.arange(n * n), n)
-    point = np.stack([i, j, np.zeros(n * n)], axis=1).astype(np.float64)
-    normals = np.tile([0.0, 0.0, 1.0], (n * n, 1))
+    bvh, point, normals = _floor_map(tmp_path, n=n)
     shaded = []
 
     def field(p, nrm, floor):
