@@ -55,7 +55,7 @@ def irradiance_under_rectangle(L, x0, x1, z0, z1, h, px=0.0, pz=0.0):
 
 
 def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, units, weights, offsets, h, tau=0.1,
-                    kappa=1.0, trace=None, cut=None, sheet=None, flat=None, edge=None):
+                    kappa=1.0, trace=None, cut=None, sheet=None, flat=None, edge=None, foot=None):
     """Plain-Python linear propagation with the visibility rule of docs/design.md
     section 4: builds every digital line of every family explicitly (dict of
     line id -> voxels), orders each line's voxels by (X, position along s,
@@ -68,7 +68,10 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
     meets nearest where the ray meets it). edge (n, 4): where a voxel's
     surface ends in its cell, the half-plane e . g >= t of its plane (zeros:
     it does not); a ray meeting its plane beyond that, within 2 cells,
-    passes it.
+    passes it. foot (n,): a small piece's footprint radius in cells (0:
+    none); a ray passing further from its centroid passes it, and it
+    separates nothing the segment between two voxels crosses its plane
+    further from.
     Returns (gathered (n, 3), S (n,));
     with trace=x, also the list of (family, sign, source voxel) voxel x
     gathered from."""
@@ -79,6 +82,12 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
         flat = np.zeros(n, bool)
     if edge is None:
         edge = np.zeros((n, 4))
+    if foot is None:
+        foot = np.zeros(n)
+
+    def misses(x, y, u):  # x's ray passes small piece y further from its centroid than its footprint radius
+        r = centroid[y] - centroid[x]
+        return foot[y] > 0 and np.linalg.norm(r - dot(r, u) * u) > foot[y] * h
 
     def over(x, y):  # x lies over y's surface (inside its edge's half-plane)
         return edge[y, :3].any() and dot(edge[y, :3], centroid[x]) >= edge[y, 3]
@@ -139,6 +148,8 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     if not ((sx > tau * h and sy < -tau * h) or (sx < -tau * h and sy > tau * h)):
                         return False
                     p = centroid[x] + (centroid[y] - centroid[x]) * (sx / (sx - sy))
+                    if foot[q] > 0 and np.linalg.norm(p - centroid[q]) > foot[q] * h:
+                        return 0  # q a small piece the segment passes by
                     lo = origin + cell[y] * h
                     inside = bool(np.all(p >= lo - 0.5 * h) and np.all(p <= lo + h + 0.5 * h))
                     if not (inside and dot(p - centroid[y], normal[y]) * dot(centroid[q] - centroid[y], normal[y]) > 0):
@@ -168,7 +179,7 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                     o = dot(normal[y], u)
                     if o == 0.0:
                         for x in waiting:
-                            if abs(dot(centroid[x] - centroid[y], normal[y])) > tau * h:
+                            if abs(dot(centroid[x] - centroid[y], normal[y])) > tau * h and not misses(x, y, u):
                                 passed[x] = y
                         continue
                     if o < 0:
@@ -206,6 +217,13 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                                     sy = dot(centroid[y] - centroid[w], normal[w])
                                     between = between or (sx > tau * h and sy < -tau * h) or \
                                         (sx < -tau * h and sy > tau * h)
+                                if d > 0 and misses(x, y, u):
+                                    # its ray passes small piece y by: hidden, y does not matter; seen, x gathers y
+                                    # unless it meets a front further on
+                                    keep.append(x)
+                                    if not between and x not in deferred:
+                                        met[x] = y
+                                    continue
                                 if between:
                                     if x in deferred:
                                         met.pop(x, None)
@@ -239,8 +257,10 @@ def propagate_lines(cell, origin, centroid, normal, radiosity, vectors, axes, un
                             elif not flat[y] and dot(centroid[x] - centroid[y], normal[y]) + \
                                     dot(centroid[y] - centroid[x], u) * o > tau * h:
                                 stay.append(x)  # level with curved y, its ray is in front of y's plane: past it
-                            elif not over(x, y) and off_edge(x, y, dot(centroid[x] - centroid[y], normal[y]), o, u):
-                                stay.append(x)  # beside y's surface, its ray crosses y's plane beyond its edge
+                            elif misses(x, y, u) or (not over(x, y) and off_edge(
+                                    x, y, dot(centroid[x] - centroid[y], normal[y]), o, u)):
+                                stay.append(x)  # it passes small piece y by, or (beside y's surface) crosses y's
+                                #                 plane beyond its edge
                             elif cut is not None and (lambda w: 1 not in w and 2 in w)(
                                     [cut_between(y, x, False), cut_between(x, y, True)]):
                                 stay.append(x)  # y's back lies beyond a cutting surface x's ray moves away from
@@ -335,7 +355,7 @@ def line_inputs(voxels):
     coordinates with each voxel's side, the two-sided sheets, the flat
     voxels (the voxels stage's flat_voxels) and the edges of surfaces that
     end inside their cell (voxels/edges.py)."""
-    from baker.voxels.edges import edge_planes
+    from baker.voxels.edges import edge_planes, footprints
     from baker.voxels.lookup import flat_voxels
     from baker.voxels.tolerances import FLAT_COS, FLAT_PLANE, SMOOTH_COS
     v = voxels
@@ -353,5 +373,7 @@ def line_inputs(voxels):
     edge_planes(v.cell, centroid.astype(np.float32).astype(np.float64), v.normal.astype(np.float64),
                 np.asarray(v.area, np.float64) / v.cell_size ** 2, (v.cut_sign == 0) & np.asarray(v.planar, bool),
                 edge)
+    foot = footprints(v.cell, centroid, v.normal, np.asarray(v.area, np.float64) / v.cell_size ** 2,
+                      ~np.any(edge[:, :3] != 0, axis=1) & np.asarray(v.planar, bool))
     return dict(centroid=centroid, normal=normal, cut=cut, sheet=np.asarray(v.two_sided, bool),
-                flat=np.asarray(flat, bool), edge=edge)
+                flat=np.asarray(flat, bool), edge=edge, foot=foot)

@@ -25,7 +25,7 @@ def test_discrete_sources_recover_the_voxel_seen(make_scene):
     for x in np.nonzero(s > 0)[0][:40]:
         _, _, trace = propagate_lines(v.cell, np.zeros(3), ref["centroid"], ref["normal"], np.ones((len(v), 3)),
                                       *one, off, 1.0, trace=int(x), cut=ref["cut"], sheet=ref["sheet"],
-                                      flat=ref["flat"], edge=ref["edge"])
+                                      flat=ref["flat"], edge=ref["edge"], foot=ref["foot"])
         seen = [y for _, _, y in trace]
         assert (src[x] == -1 and not seen) or [src[x]] == seen
 

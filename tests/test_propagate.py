@@ -18,7 +18,7 @@ def gather_both(v, radiosity, dirs, offsets, sweeper=None):
     ref = line_inputs(v)
     slow = propagate_lines(v.cell, np.zeros(3), ref["centroid"], ref["normal"], radiosity, dirs.vectors, dirs.axis,
                            dirs.unit, dirs.solid_angle / np.pi, offsets, 1.0, cut=ref["cut"], sheet=ref["sheet"],
-                           flat=ref["flat"], edge=ref["edge"])
+                           flat=ref["flat"], edge=ref["edge"], foot=ref["foot"])
     return fast, slow
 
 

@@ -39,8 +39,10 @@ MAX_PIECES = 256      # a triangle whose remainder would need more convex pieces
 def clip_half(px, py, m, x0, y0, x1, y1, keep_left):
     """The convex polygon (px, py)[:m] clipped to the half-plane left of
     (keep_left) or right of the directed line (x0, y0) -> (x1, y1)."""
-    qx = np.empty(m + 1)
-    qy = np.empty(m + 1)
+    # a convex polygon gains at most one corner, but one that rounding left slightly non-convex can gain one
+    # per edge: room for two per edge, never a write past the end
+    qx = np.empty(2 * m + 1)
+    qy = np.empty(2 * m + 1)
     n = 0
     sgn = 1.0 if keep_left else -1.0
     for i in range(m):

@@ -30,11 +30,12 @@ class AuditReport:
     misses: float            # the line stops well before the ray's first front face (occlusion-like)
     other_surface: float     # the voxel seen is over 2 cells to the side of the ray
     worst: list              # up to 10 (voxel centroid, direction, kind) examples
+    blind: float = 0.0       # of misses: the line sees nothing where the ray meets a front face (light lost)
 
     def summary(self) -> str:
         return (f"visibility audit: {self.pairs} (voxel, direction) pairs, cos-weighted disagreement "
                 f"{100 * self.disagreement:.2f}% (sees through {100 * self.sees_through:.2f}%, "
-                f"misses {100 * self.misses:.2f}%, off the ray {100 * self.other_surface:.2f}%)")
+                f"misses {100 * self.misses:.2f}% of which blind {100 * self.blind:.2f}%, off the ray {100 * self.other_surface:.2f}%)")
 
 
 def _single_family(dirs: DirectionSet, f: int) -> DirectionSet:
@@ -67,7 +68,7 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
     h = voxels.cell_size
     eps = 1e-6 * float(np.abs(scene.vertices).max() or 1.0)
     fam = sorted({int(rand01(seed, STREAM_AUDIT_FAMILIES, i) * dirs.n_families) for i in range(families)})
-    totals = np.zeros(4)  # weight: all, sees through, misses, other surface
+    totals = np.zeros(5)  # weight: all, sees through, misses, other surface, blind
     worst, pairs = [], 0
     double = scene.double_sided[scene.material_ids]
     for f in fam:
@@ -103,13 +104,13 @@ def audit(scene, voxels, bvh, surfaces, radius: int = 4, families: int = 16, sam
         missed = (seen & ~off & (t_src < t_c - 2 * h)) | (~seen & front_hit)
         other = off
         agree = ~(through | missed | other)
-        totals += [w.sum(), w[through].sum(), w[missed].sum(), w[other].sum()]
+        totals += [w.sum(), w[through].sum(), w[missed].sum(), w[other].sum(), w[~seen & front_hit].sum()]
         pairs += len(pick)
         for k in np.nonzero(~agree)[0][:2]:
             if len(worst) < 10:
                 kind = "sees through" if through[k] else ("misses" if missed[k] else "other surface")
                 worst.append((voxels.centroid[pick[k]].round(4).tolist(), u[k].round(3).tolist(), kind))
     if totals[0] == 0:
-        return AuditReport(pairs, 0.0, 0.0, 0.0, 0.0, worst)
+        return AuditReport(pairs, 0.0, 0.0, 0.0, 0.0, worst, 0.0)
     r = totals[1:] / totals[0]
-    return AuditReport(pairs, float(r.sum()), float(r[0]), float(r[1]), float(r[2]), worst)
+    return AuditReport(pairs, float(r[:3].sum()), float(r[0]), float(r[1]), float(r[2]), worst, float(r[3]))

@@ -13,10 +13,10 @@ import numpy as np
 from ..errors import BudgetError
 from ..kernels.rng import LINE_OFFSET_BOUNCE_STRIDE, STREAM_LINE_OFFSETS, rand01
 from .directions import DirectionSet
-from ..voxels.edges import edge_planes
+from ..voxels.edges import edge_planes, footprints
 from ..voxels.lookup import flat_voxels
 from ..voxels.tolerances import FLAT_COS, FLAT_PLANE, SMOOTH_COS
-from .records import (C_CX, C_CZ, C_D, C_NX, C_NZ, CUT, LINE, MAX_CUT_ROWS, P_CUT, P_NX, P_NZ, P_SHEET, P_X, P_Z,
+from .records import (C_CX, C_CZ, C_D, C_NX, C_NZ, C_R, CUT, LINE, MAX_CUT_ROWS, P_CUT, P_NX, P_NZ, P_SHEET, P_X, P_Z,
                       POS, SHEET_FLAT, SHEET_KINDS)
 from .sweep import HIT_BATCH, propagate_families
 
@@ -45,7 +45,12 @@ class LineSweeper:
         edge_planes(cell, pos[:, P_X:P_Z + 1].astype(np.float64), voxels.normal.astype(np.float64),
                     np.asarray(voxels.area, np.float64) / voxels.cell_size ** 2,
                     (voxels.cut_sign == 0) & np.asarray(voxels.planar, bool), edge)
-        edged = np.nonzero(np.any(edge[:, :3] != 0, axis=1))[0]
+        # small pieces with no edge line: a footprint radius (voxels/edges.py), in their edge row
+        has_edge = np.any(edge[:, :3] != 0, axis=1)
+        foot = footprints(cell, pos[:, P_X:P_Z + 1].astype(np.float64), voxels.normal,
+                          np.asarray(voxels.area, np.float64) / voxels.cell_size ** 2,
+                          ~has_edge & np.asarray(voxels.planar, bool))
+        edged = np.nonzero(has_edge | (foot > 0))[0]
         if len(cut) + len(edged) > MAX_CUT_ROWS:
             raise BudgetError(f"{len(cut) + len(edged)} cut and edge voxels: over the propagation's limit of "
                               f"{MAX_CUT_ROWS}; lower the resolution")
@@ -58,6 +63,7 @@ class LineSweeper:
         cutp[:len(cut), C_CX:C_CZ + 1] = cell[cut]
         cutp[len(cut):, C_NX:C_D + 1] = edge[edged]
         cutp[len(cut):, C_CX:C_CZ + 1] = cell[edged]
+        cutp[len(cut):, C_R] = foot[edged]
         self.cutp = cutp
         self._edge_rows = edged
         self._cut_rows = cut

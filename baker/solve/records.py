@@ -33,10 +33,12 @@ MAX_CUT_ROWS = 2 ** 24 - 1  # rows a float32 P_CUT can name exactly
 
 # Cut table, `cutp` (m, CUT) float64, one row per cut voxel, then one per edge voxel (the same fields: the
 # edge's in-plane unit normal e pointing into the surface, the offset t (e . g >= t on the surface), its cell):
-CUT = 7
+# an edge row may also (or only: e = 0, t = 0) give a small piece's footprint radius
+CUT = 8
 C_NX, C_NY, C_NZ = _u(0), _u(1), _u(2)   # the cutting plane's unit normal
 C_D = _u(3)                              # its offset: n . g = C_D for g on the plane (grid coordinates)
 C_CX, C_CY, C_CZ = _u(4), _u(5), _u(6)   # the cut voxel's cell
+C_R = _u(7)                              # edge rows: the footprint radius of a small piece (0: none; edges.py)
 
 # Waiting records, `rec` (REC int32 per record; fields marked f hold float32 bits, read through `recf`):
 REC = 11

@@ -57,8 +57,8 @@ from .records import (EMPTY, LINE, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X, P_Y, P
                       T_KEY, T_LAST, T_STAMP, edge_row, flush_hits, sheet_kind, unlink)
 from .visibility import (CHECK, GATHER, WAIT, above_deferred, back_beyond_cut, below_deferred, convex_edge, defer,
                          deferred_t, defers, front_check, front_min, front_outcome, hits_back, in_front, order_cell,
-                         off_edge, over_surface, past_silhouette,
-                         passes_parallel, sheet_convex_edge)
+                         misses_footprint, off_edge, over_surface, passes_parallel, passes_piece,
+                         past_silhouette, sheet_convex_edge)
 
 # The sweep's records (the one pack, in propagate_families; kernels unpack them at entry):
 # - AxisVoxels, the voxels in one axis's order: starts (ng + 1,) each cell's first voxel, gcell (ng, 3) the
@@ -175,7 +175,7 @@ def _sweep(vox, lane, hit, nb, col, u, forward, tau, kappa, dense, mask, stamp):
                 # parallel to the line: neither sends nor receives, but a waiting voxel clearly on one
                 # side of its plane has passed a surface the line runs along (visibility.across)
                 if head != EMPTY:
-                    passes_parallel(y, pos2, head, rec, recf, tau)
+                    passes_parallel(y, pos2, head, rec, recf, tau, cutp, ux, uy, uz)
             elif o < 0.0:
                 # y faces the rays: each waiting voxel gathers it, keeps waiting or is hidden from it
                 if head == EMPTY:
@@ -213,11 +213,20 @@ def _sweep(vox, lane, hit, nb, col, u, forward, tau, kappa, dense, mask, stamp):
                     if what == CHECK:
                         what = front_check(d, dmin, x, xe, y, z_sheet, m, ycut, g, rec, recf, jr, pos_all, pos2, buf,
                                            gcell, cutp, tau, kappa, ux, uy, uz)
-                    if what == GATHER and kraw >= SHEET_KINDS and d > 0.0:
+                    fallback = False
+                    if what != WAIT and kraw >= SHEET_KINDS and d > 0.0:
                         x0, x1, x2 = float(recf[jr + R_X]), float(recf[jr + R_Y]), float(recf[jr + R_Z])
                         er = edge_row(kraw)
-                        if not over_surface(cutp, er, x0, x1, x2) and off_edge(cutp, er, d, o, x0, x1, x2, cy0, cy1,
-                                                                               cy2, ux, uy, uz):
+                        if misses_footprint(cutp, er, x0, x1, x2, cy0, cy1, cy2, ux, uy, uz):
+                            # x's ray passes a small piece by (visibility.misses_footprint): hidden, y does not
+                            # matter; seen, y is what x gathers unless it meets a front further on
+                            # (visibility.FALLBACK)
+                            if what == GATHER and pv == EMPTY:
+                                fallback = True
+                            else:
+                                what = WAIT
+                        elif what == GATHER and not over_surface(cutp, er, x0, x1, x2) and \
+                                off_edge(cutp, er, d, o, x0, x1, x2, cy0, cy1, cy2, ux, uy, uz):
                             # x beside y's surface, its ray meeting y's plane beyond the edge where the surface
                             # ends: it passes (visibility.off_edge)
                             what = WAIT
@@ -236,8 +245,8 @@ def _sweep(vox, lane, hit, nb, col, u, forward, tau, kappa, dense, mask, stamp):
                             hit[ring_p[slot]] = ring_v[slot]
                         ring_p[slot] = hp
                         val = order[np.uint64(y)] if what == GATHER else EMPTY
-                        wait = False
-                        if what == GATHER and (kind >= SHEET_FLAT or pv != EMPTY):
+                        wait = fallback
+                        if what == GATHER and not fallback and (kind >= SHEET_FLAT or pv != EMPTY):
                             ty = (cy0 - float(recf[jr + R_X])) * ux + (cy1 - float(recf[jr + R_Y])) * uy + \
                                 (cy2 - float(recf[jr + R_Z])) * uz
                             if defers(kind, d, o, ty, tau):
@@ -298,9 +307,9 @@ def _sweep(vox, lane, hit, nb, col, u, forward, tau, kappa, dense, mask, stamp):
                             # a curved y: x's ray, level with y, already in front of y's tangent plane has passed
                             # a convex silhouette: it keeps waiting
                             gone = False
-                        elif kraw >= SHEET_KINDS and not over_surface(cutp, edge_row(kraw), x0, x1, x2) and \
-                                off_edge(cutp, edge_row(kraw), d, o, x0, x1, x2, cy0, cy1, cy2, ux, uy, uz):
-                            gone = False  # x beside y's surface, its ray crossing y's plane beyond its edge
+                        elif kraw >= SHEET_KINDS and passes_piece(cutp, edge_row(kraw), d, o, x0, x1, x2, cy0, cy1,
+                                                                  cy2, ux, uy, uz):
+                            gone = False  # x's ray crosses y's plane outside its footprint or beyond its edge
                     if gone:
                         xe = np.int64(rec[jr + R_VOXEL])
                         if (xe < 0 or ycut) and back_beyond_cut(pos_all, xe if xe >= 0 else -xe - 1, xe < 0, pos2, y,

@@ -51,9 +51,9 @@ import numpy as np
 from numba import config, njit
 
 from ..voxels.tolerances import SAME_PLANE_COS
-from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_X, P_Y,
-                      P_Z, R_DEFER, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, SHEET_FLAT, cut_row,
-                      cut_side, is_sheet)
+from .records import (C_CX, C_CY, C_CZ, C_D, C_NX, C_NY, C_NZ, C_R, EMPTY, P_CUT, P_NX, P_NY, P_NZ, P_SHEET, P_X,
+                      P_Y, P_Z, R_DEFER, R_NEXT, R_NX, R_NY, R_NZ, R_PASSED, R_VOXEL, R_X, R_Y, R_Z, REC, SHEET_FLAT,
+                      SHEET_KINDS, cut_row, cut_side, edge_row, is_sheet)
 
 CUT_REACH = 3.0        # cells around a cut voxel's cell where its cutting surface is taken to stand
 SEGMENT_REACH = 0.5    # cells beyond y's cell where a surface crossing it is taken to stand (the 26-connected
@@ -75,9 +75,9 @@ DEFER_TIE = 1e-5      # cells: the deferral's tests clear their bounds by this (
 # never see the switch (OFF is 0 and every test of it folds away), so no cached kernel lacks a clause.
 CLAUSES = ("separated", "cut_between", "passes_parallel", "across", "back_to_back", "order_ties",
            "back_beyond_cut", "convex_edge", "sheet_front", "defers", "sheet_convex_edge", "edge_of_x",
-           "past_silhouette", "off_edge")
+           "past_silhouette", "off_edge", "footprint")
 (SEPARATED, CUT_BETWEEN, PASSES_PARALLEL, ACROSS, BACK_TO_BACK, ORDER_TIES, BACK_BEYOND_CUT, CONVEX_EDGE,
- SHEET_FRONT, DEFERS, SHEET_CONVEX_EDGE, EDGE_OF_X, PAST_SILHOUETTE, OFF_EDGE) = range(1, len(CLAUSES) + 1)
+ SHEET_FRONT, DEFERS, SHEET_CONVEX_EDGE, EDGE_OF_X, PAST_SILHOUETTE, OFF_EDGE, FOOTPRINT) = range(1, len(CLAUSES) + 1)
 
 
 def _clause_off() -> int:
@@ -97,7 +97,7 @@ CLEAR, HIDES, AWAY = 0, 1, 2  # a surface between x and y: none; in the way of x
 
 
 @njit(cache=True)
-def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
+def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz, cutp):
     """Is y hidden from x by another voxel q of y's cell? HIDES when q's
     plane lies between them (beyond tau on each side), the segment from x's
     centroid to y's crosses that plane within SEGMENT_REACH of y's cell, on
@@ -128,6 +128,12 @@ def separated(px, x, pos, y, buf, m, tau_h, lo0, lo1, lo2, ux, uy, uz):
             p1 = x1 + (y1 - x1) * lam
             p2 = x2 + (y2 - x2) * lam
             r = SEGMENT_REACH
+            k = pos[q, P_SHEET]
+            if k >= SHEET_KINDS and OFF != FOOTPRINT:
+                rad = cutp[edge_row(k), C_R]
+                if rad > 0.0 and (p0 - float(pos[q, P_X])) ** 2 + (p1 - float(pos[q, P_Y])) ** 2 + \
+                        (p2 - float(pos[q, P_Z])) ** 2 > rad * rad:
+                    continue  # q a small piece, the segment passing it by
             if lo0 - r <= p0 <= lo0 + 1.0 + r and lo1 - r <= p1 <= lo1 + 1.0 + r and lo2 - r <= p2 <= lo2 + 1.0 + r:
                 # q's piece stands where the segment crosses: on the same side
                 # of y's plane as q (a wall rising from a floor), not behind it
@@ -213,19 +219,31 @@ def cut_between(pa, a, pb, b, cutp, tau_h, ux, uy, uz, a_waits):
 
 
 @njit(cache=True)
-def passes_parallel(w, pos, j, rec, recf, tau_h):
-    """The line passes voxel w, parallel to it: every waiting voxel (list
-    from record j) beyond tau of w's plane remembers w (the last such)."""
+def passes_parallel(w, pos, j, rec, recf, tau_h, cutp, ux, uy, uz):
+    """The line passes voxel w, parallel to it (along u): every waiting
+    voxel (list from record j) beyond tau of w's plane remembers w (the
+    last such), unless w is a small piece (its edge row's footprint radius)
+    that its ray passes further from than that radius (a frame's side
+    beside a ray leaving the wall it hangs on)."""
     if OFF == PASSES_PARALLEL:
         return
     w0, w1, w2 = float(pos[w, P_X]), float(pos[w, P_Y]), float(pos[w, P_Z])
     n0, n1, n2 = float(pos[w, P_NX]), float(pos[w, P_NY]), float(pos[w, P_NZ])
+    rad = 0.0
+    k = pos[w, P_SHEET]
+    if k >= SHEET_KINDS and OFF != FOOTPRINT:
+        rad = cutp[edge_row(k), C_R]
     while j != EMPTY:
         jr = np.uint64(REC * j)
-        s = (float(recf[jr + R_X]) - w0) * n0 + (float(recf[jr + R_Y]) - w1) * n1 + \
-            (float(recf[jr + R_Z]) - w2) * n2
+        r0, r1, r2 = float(recf[jr + R_X]) - w0, float(recf[jr + R_Y]) - w1, float(recf[jr + R_Z]) - w2
+        s = r0 * n0 + r1 * n1 + r2 * n2
         if abs(s) > tau_h:
-            rec[jr + R_PASSED] = w
+            far = False
+            if rad > 0.0:
+                t = r0 * ux + r1 * uy + r2 * uz  # the ray's point nearest w: r - t u from w's centroid
+                far = (r0 - t * ux) ** 2 + (r1 - t * uy) ** 2 + (r2 - t * uz) ** 2 > rad * rad
+            if not far:
+                rec[jr + R_PASSED] = w
         j = np.int64(rec[jr + R_NEXT])
 
 
@@ -319,7 +337,7 @@ def hidden(px, x, pos, y, xcut, ycut, d, g, m, buf, gcell, cutp, tau_h, ux, uy, 
     out = CLEAR
     if m > 1:
         out = separated(px, x, pos, y, buf, m, tau_h, float(gcell[g, 0]), float(gcell[g, 1]), float(gcell[g, 2]),
-                        ux, uy, uz)
+                        ux, uy, uz, cutp)
         if out == HIDES:
             return HIDES
     if xcut or ycut:
@@ -590,3 +608,32 @@ def off_edge(cutp, row, d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz):
     if r0 * r0 + r1 * r1 + r2 * r2 > EDGE_REACH * EDGE_REACH:
         return False
     return p0 * cutp[row, C_NX] + p1 * cutp[row, C_NY] + p2 * cutp[row, C_NZ] < cutp[row, C_D]
+
+
+@njit(cache=True, inline="always")
+def misses_footprint(cutp, row, x0, x1, x2, y0, y1, y2, ux, uy, uz):
+    """Does x's ray (along u) pass y, a small piece, further from its
+    centroid than its footprint radius (cutp[row], its edge row: C_R > 0,
+    edges.footprint_radii)? A ray that meets a disc passes within its
+    radius of its centre, whatever its angle: the test never lets through
+    a ray the piece stops, and needs no plane (a chandelier's curved arm, a
+    sliver). A line a cell thick meets all of a frame's moulding, a
+    baluster's face, a chandelier's arm in its cell: a wall behind such
+    things saw a fifth of the light the rays from it see."""
+    rad = cutp[row, C_R]
+    if rad <= 0.0 or OFF == FOOTPRINT:
+        return False
+    r0, r1, r2 = y0 - x0, y1 - x1, y2 - x2
+    t = r0 * ux + r1 * uy + r2 * uz
+    return (r0 - t * ux) ** 2 + (r1 - t * uy) ** 2 + (r2 - t * uz) ** 2 > rad * rad
+
+
+@njit(cache=True, inline="always")
+def passes_piece(cutp, row, d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz):
+    """Does x's ray pass y by, y a voxel with an edge row (cutp[row])? When
+    it meets y's plane outside a small piece's footprint (`misses_footprint`)
+    or, x beside y's surface, beyond the edge where the surface ends
+    (`off_edge`)."""
+    if misses_footprint(cutp, row, x0, x1, x2, y0, y1, y2, ux, uy, uz):
+        return True
+    return not over_surface(cutp, row, x0, x1, x2) and off_edge(cutp, row, d, o, x0, x1, x2, y0, y1, y2, ux, uy, uz)

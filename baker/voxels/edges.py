@@ -1,5 +1,7 @@
 """Where a voxel's surface ends inside its cell (docs/design.md section 4,
-clause 11): the edge of a box's top, a hole's rim, a wall's end.
+clause 11): the edge of a box's top, a hole's rim, a wall's end; and the
+footprint of a small piece with no edge line (clause 12): a frame's
+moulding, a chandelier's arm.
 
 A voxel's plane (its centroid and normal) crosses its cell in a polygon,
 the cross-section. A surface that runs on through the cell covers it
@@ -91,3 +93,65 @@ def edge_planes(cell, centroid, normal, area, eligible, out):
             else:
                 hi = t
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = e0, e1, e2, 0.5 * (lo + hi)
+
+
+FOOT_AREA = 0.25     # cells^2: a planar voxel at most this large whose plane its cell's voxels cover under
+#                      EDGE_FILL is a small piece (a frame's moulding, a baluster's face, a chandelier's arm) ...
+FOOT_MARGIN = 1.3    # ... and a ray meets it only within this many times the radius of a disc of its area
+FOOT_PLANE = 0.1     # cells: voxels of a cell whose planes agree within SAME_PLANE_COS and this offset are one
+#                      surface (the two halves of a cut one)
+
+
+@njit(cache=True, parallel=True)
+def footprint_radii(starts, cell, centroid, normal, area, eligible, same_cos, out):
+    """starts (ng + 1,) the cells' first voxels (voxels grouped by cell),
+    cell (n, 3) int, centroid (n, 3) grid units, normal (n, 3), area (n,) cells^2, eligible
+    (n,) bool. Writes out (n,): the radius (cells) of a small piece's
+    footprint, a disc about its centroid (FOOT_MARGIN times that of a disc
+    of its area), or 0 where the voxel is not a small piece: over FOOT_AREA,
+    or its surface (its own voxel with any other of the cell in its plane
+    and facing, the halves of a cut surface) covers its plane's cross-section
+    of the cell within EDGE_FILL (a surface running on through the cell,
+    however little of the cell it clips: a wall is never one)."""
+    for g in prange(starts.shape[0] - 1):
+        for i in range(starts[g], starts[g + 1]):
+            out[i] = 0.0
+            if not eligible[i] or area[i] > FOOT_AREA:
+                continue
+            c0, c1, c2 = centroid[i, 0], centroid[i, 1], centroid[i, 2]
+            n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
+            px, py, pz, m = _cross_section(c0, c1, c2, n0, n1, n2, cell[i])
+            if m < 3:
+                continue
+            a_cs = area_centroid(px, py, pz, m)[0]
+            same = 0.0
+            for j in range(starts[g], starts[g + 1]):
+                cj = normal[j, 0] * n0 + normal[j, 1] * n1 + normal[j, 2] * n2
+                dj = (centroid[j, 0] - c0) * n0 + (centroid[j, 1] - c1) * n1 + (centroid[j, 2] - c2) * n2
+                if cj >= same_cos and abs(dj) <= FOOT_PLANE:
+                    same += area[j]
+            if same >= EDGE_FILL * a_cs:
+                continue
+            out[i] = FOOT_MARGIN * math.sqrt(area[i] / math.pi)
+
+
+def footprints(cell, centroid, normal, area, eligible):
+    """(n,) footprint radii (footprint_radii) of voxels grouped by cell:
+    cell (n, 3) int, centroid (n, 3) grid units, normal (n, 3), area (n,)
+    cells^2, eligible (n,) bool (the propagation takes planar voxels with
+    no edge line: a box's top at its edge is a strip a disc fits badly, and
+    a ray let past it runs into the box's side from behind; a noisy scan's
+    curved pieces let its lines through its shell)."""
+    from .tolerances import SAME_PLANE_COS
+    n = len(cell)
+    out = np.zeros(n)
+    if n == 0:
+        return out
+    cell = np.ascontiguousarray(cell, np.int64)
+    new = np.ones(n, bool)
+    new[1:] = np.any(cell[1:] != cell[:-1], axis=1)
+    starts = np.append(np.nonzero(new)[0], n).astype(np.int64)
+    footprint_radii(starts, cell, np.ascontiguousarray(centroid, np.float64),
+                    np.ascontiguousarray(normal, np.float64), np.ascontiguousarray(area, np.float64),
+                    np.ascontiguousarray(eligible, np.bool_), SAME_PLANE_COS, out)
+    return out
