@@ -55,6 +55,19 @@ def _cross_section(c0, c1, c2, n0, n1, n2, cell):
     return px, py, pz, m
 
 
+@njit(cache=True)
+def _voxel_section(centroid, normal, cell, i):
+    """The cross-section of voxel i's plane with its cell: the polygon
+    (px, py, pz, m) and its area and area-weighted centroid sums (area 0
+    when the plane misses the cell)."""
+    px, py, pz, m = _cross_section(centroid[i, 0], centroid[i, 1], centroid[i, 2], normal[i, 0], normal[i, 1],
+                                   normal[i, 2], cell[i])
+    if m < 3:
+        return px, py, pz, m, 0.0, 0.0, 0.0, 0.0
+    a, sx, sy, sz = area_centroid(px, py, pz, m)
+    return px, py, pz, m, a, sx, sy, sz
+
+
 @njit(cache=True, parallel=True)
 def edge_planes(cell, centroid, normal, area, eligible, out):
     """cell (n, 3) int, centroid (n, 3) grid units, normal (n, 3), area (n,)
@@ -67,10 +80,7 @@ def edge_planes(cell, centroid, normal, area, eligible, out):
             continue
         c0, c1, c2 = centroid[i, 0], centroid[i, 1], centroid[i, 2]
         n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
-        px, py, pz, m = _cross_section(c0, c1, c2, n0, n1, n2, cell[i])
-        if m < 3:
-            continue
-        a_cs, sx, sy, sz = area_centroid(px, py, pz, m)
+        px, py, pz, m, a_cs, sx, sy, sz = _voxel_section(centroid, normal, cell, i)
         if a_cs <= 0.0 or area[i] >= EDGE_FILL * a_cs:
             continue
         e0, e1, e2 = c0 - sx / a_cs, c1 - sy / a_cs, c2 - sz / a_cs
@@ -118,12 +128,11 @@ def footprint_radii(starts, cell, centroid, normal, area, eligible, same_cos, ou
             out[i] = 0.0
             if not eligible[i] or area[i] > FOOT_AREA:
                 continue
+            a_cs = _voxel_section(centroid, normal, cell, i)[4]
+            if a_cs <= 0.0:
+                continue
             c0, c1, c2 = centroid[i, 0], centroid[i, 1], centroid[i, 2]
             n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
-            px, py, pz, m = _cross_section(c0, c1, c2, n0, n1, n2, cell[i])
-            if m < 3:
-                continue
-            a_cs = area_centroid(px, py, pz, m)[0]
             same = 0.0
             for j in range(starts[g], starts[g + 1]):
                 cj = normal[j, 0] * n0 + normal[j, 1] * n1 + normal[j, 2] * n2
