@@ -22,7 +22,7 @@ ratio, the share of blocks within 10%, and the relative RMSE less the
 reference's noise. References are kept in bench/out/ (keyed by the
 file's SHA-256, the light, --res and --spp).
 
-    python bench/real_scenes.py [--runs N] [--bake] [--presets P,Q] [--spp N] [--res N] [--json] [FILE ...]
+    python bench/real_scenes.py [--runs N] [--bake] [--presets P,Q] [--scenes A,B] [--spp N] [--res N] [--json] [FILE ...]
 """
 from __future__ import annotations
 
@@ -174,11 +174,15 @@ def main():
     ap.add_argument("--spp", type=int, default=1024, help="path tracer samples per pixel (the reference)")
     ap.add_argument("--res", type=int, default=128, help="image side for the comparison")
     ap.add_argument("--images", help="write each bake view and reference as PNG into this folder")
+    ap.add_argument("--scenes", help="only these of the real scenes (comma-separated names, e.g. gazebo,bitterli_modern_hall)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     # smallest first: the quick rows come first
     files = sorted((os.path.join(BIG, f) for f in os.listdir(BIG) if f.endswith(".glb")), key=os.path.getsize) \
         if os.path.isdir(BIG) else []
+    if args.scenes:
+        names = set(args.scenes.split(","))
+        files = [f for f in files if os.path.splitext(os.path.basename(f))[0] in names]
     files += args.files
     if not files:
         raise SystemExit(f"no scenes: {BIG} is absent and no file was given")

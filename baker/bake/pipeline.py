@@ -45,7 +45,7 @@ class BakeResult:
         rows += [("texels", f"{c['texels']:,} in {c['charts']:,} maps ({c['texels_covered']:,} sampled, "
                             f"{c['texels_inside']:,} inside geometry)")]
         rows += [("points shaded", f"{ts.points_shaded:,} ({ts.texels_shaded:,} texels, {ts.texels_interpolated:,} "
-                                   f"interpolated; {ts.subtexel_triangles:,} small-triangle sides at their corners; "
+                                   f"interpolated; {ts.subtexel_triangles:,} small-triangle sides at their corners or centroid; "
                                    f"{ts.texels_antialiased:,} edge texels at {ts.texel_samples}x{ts.texel_samples})"
                   if ts is not None else "- (preview)")]
         rows += [("maps stored", f"{c['unique']:,} ({c['constant']:,} single-colour, dedup ratio "

@@ -27,6 +27,7 @@ MIN_SIZE = 8      # the smallest map (and the quadtree's smallest node)
 MAX_SIZE = 512    # a page: no map is larger
 MAX_REFINE = 16   # a small triangle's texels are at most this much finer than the texel size asked for
 SUBTEXEL_SPAN = 2  # texels: triangles no wider are shaded at their corners (Charts.subtexel)
+CENTROID_SPAN = 0.5  # texels: triangles no wider are shaded once, at their centroid (Charts.centroid)
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,9 @@ class Charts:
     size asked for (a scan's or a dense mesh's triangle), so its light is
     sampled at its three corners and interpolated over its map, not texel
     by texel (lightmap/values.py: corner_values): at that density its own texels
-    would sample it at no more than about SUBTEXEL_SPAN^2 / 2 = 2 points."""
+    would sample it at no more than about SUBTEXEL_SPAN^2 / 2 = 2 points;
+    span (nc,) float64: the triangle's extent in texels of the size asked
+    for (on its projection plane)."""
     tri: np.ndarray
     back: np.ndarray
     axis: np.ndarray
@@ -49,6 +52,7 @@ class Charts:
     texel: np.ndarray
     corners2d: np.ndarray
     subtexel: np.ndarray
+    span: np.ndarray
 
     per_triangle = True  # the Layout protocol (lightmap/values.py): maps follow triangles
 
@@ -66,6 +70,14 @@ class Charts:
     def subtexel_charts(self) -> np.ndarray:
         """The charts shaded at their corners (lightmap/values.py: corner_values)."""
         return np.nonzero(self.subtexel)[0]
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """(nc,) bool: sub-texel triangles no wider than CENTROID_SPAN
+        texels (a dense mesh's, a scan's), shaded once at their centroid:
+        the light over a triangle that small is the light of a point (its
+        map is constant), and three corner points would triple the cost."""
+        return self.subtexel & (self.span <= CENTROID_SPAN)
 
     def sample(self, corners, inset=0.0, bvh=None, lift=0.0):
         """The Layout protocol's texel points (lightmap/values.py: sample_points)."""
@@ -128,6 +140,7 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     fine = float(MIN_SIZE - 2 * BORDER)
     small = span < fine * texel
     subtexel = span <= SUBTEXEL_SPAN * texel
+    span_texels = span / float(texel_size)
     texel[small] = np.maximum(span[small] / fine, texel[small] / MAX_REFINE)
     for _ in range(64):  # coarser texels for triangles too large for a page
         lo = p2.min(axis=1) / texel[:, None]
@@ -142,4 +155,4 @@ def per_triangle_charts(corners: np.ndarray, two_sided: np.ndarray, texel_size: 
     pad = (size[:, None] - (hi - lo)) / 2
     origin = lo - pad
     corners2d = p2 / texel[:, None, None] - origin[:, None, :]
-    return Charts(tri, back, axis, origin, size, texel, corners2d, subtexel)
+    return Charts(tri, back, axis, origin, size, texel, corners2d, subtexel, span_texels)

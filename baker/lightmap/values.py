@@ -27,6 +27,8 @@ LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
+CLUSTER_BINS = 16   # triangles under half a texel share a shading point when their normals share a cube-map cell
+#                     of 1 / CLUSTER_BINS of a face's side (about 6 degrees: the cosine moves by at most ~0.1)
 SAME_PLANE_COS = 0.999  # sparse bounced light: a lattice texel whose normal is this close lies on the same surface
 STRIDE = 2          # adaptive shading: texels on this lattice are shaded first (a power of two)
 
@@ -107,7 +109,7 @@ def preview_texels(prepared, solution, layout, seed=0) -> TexelSet:
     texel = layout.min_texel
     lift = LIFT * min(h, texel)
     off, size, point, covered, ttri, tback, owner, _ = sample_points(layout, corners, 0.0, bvh, lift)
-    small, cpts = corner_points(layout, corners)
+    small, cpts, _ = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
                              tback, point, covered & ~by_corners, lift, np.inf, seed)
@@ -144,7 +146,10 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
     Sub-texel triangles are shaded at their three corner points and
-    interpolated over their maps (corner_points). Adaptive shading
+    interpolated over their maps; those under half a texel are shaded once,
+    each cluster of them in one texel-sized cell, of one material, facing
+    one way within about 6 degrees, at one of its centroids
+    (corner_points, small_triangle_light). Adaptive shading
     (`interpolate` > 0): the texels on the even lattice (every STRIDE-th
     row and column of a map) are shaded first; a texel between lattice
     texels (two beside it in its row or column, or four diagonal ones)
@@ -181,7 +186,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     texel = layout.min_texel
     lift = LIFT * min(h, texel)
     off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift)
-    small, cpts = corner_points(layout, corners)
+    small, cpts, once = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
@@ -210,14 +215,12 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         return shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
 
     if len(small):
-        cn = np.repeat(side_normals(corners, layout.tri[small], layout.back[small]), 3, axis=0)
-        cp = cpts.reshape(-1, 3)
-        cv = shade(cp, cn, np.ones(3 * len(small), bool))
-        if bounced is not None:   # a sub-texel triangle's smooth light: once, at its centroid
-            cn1 = cn.reshape(-1, 3, 3)[:, 0]
-            cv = cv.reshape(-1, 3, 3)
-            cv += shade_bounced(cpts.mean(axis=1), cn1, (cv @ LUMINANCE).max(axis=1))[:, None, :]
-        corner_values(layout, corners, small, cv.reshape(-1, 3, 3), point, off, values)
+        cv = small_triangle_light(lambda p, n: shade(p, n, np.ones(len(p), bool)),
+                                  shade_bounced if bounced is not None else None, cpts,
+                                  side_normals(corners, layout.tri[small], layout.back[small]), once,
+                                  surfaces.arrays.tri_material[layout.tri[small]],
+                                  texel_size_for(solution, config.texel_density))
+        corner_values(layout, corners, small, cv, point, off, values)
     want = found & ~by_corners
     todo = np.nonzero(want)[0]
     between = np.zeros(len(point), bool)
@@ -359,15 +362,81 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
 
 def corner_points(layout, corners):
     """The charts of sub-texel triangles (Charts.subtexel; none for xatlas
-    layouts, whose texels follow the surface's area, not its triangles) and
-    their shading points (m, 3, 3): each corner moved CORNER_IN of the way
-    towards the centroid (off the edge where a neighbouring surface may
-    meet it: the same reason as texels.INSET)."""
+    layouts, whose texels follow the surface's area, not its triangles),
+    their shading points (m, 3, 3) and whether each is shaded once (m,)
+    bool: each corner moved CORNER_IN of the way towards the centroid (off
+    the edge where a neighbouring surface may meet it: the same reason as
+    texels.INSET); a triangle no wider than Charts.centroid's span has all
+    three at its centroid, and is shaded once."""
     charts = layout.subtexel_charts()
     if not len(charts):
-        return np.zeros(0, np.int64), np.zeros((0, 3, 3))
+        return np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros(0, bool)
     c = corners[layout.tri[charts]]
-    return charts, c + CORNER_IN * (c.mean(axis=1, keepdims=True) - c)
+    mid = c.mean(axis=1, keepdims=True)
+    once = layout.centroid[charts]
+    pts = np.where(once[:, None, None], mid, c + CORNER_IN * (mid - c))
+    return charts, pts, once
+
+
+def point_clusters(points, normals, material, cell):
+    """Small triangles shaded together: (rep (k,), of (m,), normal (k, 3)).
+    Points (m, 3) (centroids) in one cube of a grid `cell` apart, of one
+    material, whose unit normals (m, 3) fall in one of CLUSTER_BINS^2
+    cells of the same face of a cube map (about 90 / CLUSTER_BINS degrees
+    wide) form a cluster; it is shaded at rep, its member nearest the
+    members' mean (a point on a surface: the mean of a curved patch's
+    points lies under it), ties to the first, with the members' mean
+    normal; of: each point's cluster, in the order of the clusters' keys."""
+    m = len(points)
+    if not m:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+    ax = np.argmax(np.abs(normals), axis=1)
+    r = np.arange(m)
+    major = normals[r, ax]
+    minor = np.stack([normals[r, (ax + 1) % 3], normals[r, (ax + 2) % 3]], axis=1) / np.abs(major)[:, None]
+    q = np.clip(np.floor((minor + 1.0) * (0.5 * CLUSTER_BINS)), 0, CLUSTER_BINS - 1)
+    key = np.column_stack([np.floor(points / cell), 2 * ax + (major > 0), q, material]).astype(np.int64)
+    _, of = np.unique(key, axis=0, return_inverse=True)
+    of = of.ravel()
+    k = int(of.max()) + 1
+    count = np.bincount(of, minlength=k)
+    mean = np.stack([np.bincount(of, weights=points[:, c], minlength=k) for c in range(3)], axis=1) / count[:, None]
+    normal = np.stack([np.bincount(of, weights=normals[:, c], minlength=k) for c in range(3)], axis=1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    dist = np.linalg.norm(points - mean[of], axis=1)
+    order = np.lexsort((r, dist, of))          # by cluster, then distance, then index
+    first = np.ones(m, bool)
+    first[1:] = of[order[1:]] != of[order[:-1]]
+    return order[first], of, normal
+
+
+def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell):
+    """(m, 3, 3) the light at sub-texel triangles' shading points (m, 3, 3)
+    with their sides' unit normals (m, 3): at each corner, or for those
+    shaded once (corner_points) at their cluster's point (point_clusters,
+    grid `cell` apart: a texel): shade(points, normals) -> (n, 3) the
+    sharp light; shade_smooth(points, normals, floors) -> (n, 3) the smooth
+    light (None: none apart), once per triangle at its centroid or its
+    cluster's point, its cut bounded against the brightest sharp light of
+    the points it serves. Returns (light, points shaded once)."""
+    three = np.nonzero(~once)[0]
+    one = np.nonzero(once)[0]
+    rep, of, cnormal = point_clusters(pts[one, 0], normals[one], material[one], cell)
+    got = shade(np.concatenate([pts[three].reshape(-1, 3), pts[one[rep], 0]]),
+                np.concatenate([np.repeat(normals[three], 3, axis=0), cnormal]))
+    out = np.empty((len(pts), 3, 3))
+    out[three] = got[:3 * len(three)].reshape(-1, 3, 3)
+    out[one] = got[3 * len(three):][of][:, None, :]
+    if shade_smooth is not None:
+        lum = out @ LUMINANCE
+        floor = np.zeros(len(rep))
+        np.maximum.at(floor, of, lum[one, 0])
+        smooth = shade_smooth(np.concatenate([pts[three].mean(axis=1), pts[one[rep], 0]]),
+                              np.concatenate([normals[three], cnormal]),
+                              np.concatenate([lum[three].max(axis=1), floor]))
+        out[three] += smooth[:len(three), None, :]
+        out[one] += smooth[len(three):][of][:, None, :]
+    return out
 
 
 def corner_values(layout, corners, charts, values_at_corners, point, off, values):
