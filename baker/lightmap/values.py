@@ -27,6 +27,7 @@ LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
+CLUSTER_CELL = 1.0  # texels: the grid of those clusters
 CLUSTER_BINS = 16   # triangles under half a texel share a shading point when their normals share a cube-map cell
 #                     of 1 / CLUSTER_BINS of a face's side (about 6 degrees: the cosine moves by at most ~0.1)
 SAME_PLANE_COS = 0.999  # sparse bounced light: a lattice texel whose normal is this close lies on the same surface
@@ -219,7 +220,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
                                   shade_bounced if bounced is not None else None, cpts,
                                   side_normals(corners, layout.tri[small], layout.back[small]), once,
                                   surfaces.arrays.tri_material[layout.tri[small]],
-                                  texel_size_for(solution, config.texel_density))
+                                  CLUSTER_CELL * texel_size_for(solution, config.texel_density))
         corner_values(layout, corners, small, cv, point, off, values)
     want = found & ~by_corners
     todo = np.nonzero(want)[0]
