@@ -567,14 +567,10 @@ def inside_2d(p, q, tol):
     return b1 >= -tol and b2 >= -tol and 1 - b1 - b2 >= -tol
 
 
-def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
-    """A floor tessellated into triangles one texel wide under a point
-    light: each triangle is shaded at its three corner points only (3
-    points a triangle, not a point a texel), and its texels, interpolated
-    linearly from them, follow the light I H / (H^2 + r^2)^(3/2) within
-    0.3% on their triangle (the linear interpolation's error over a
-    triangle this small is below 0.1%; a wrong weight would be off by the
-    light's variation over a triangle, ~1.5%) and within 1% beyond it."""
+def _fine_floor_bake(make_scene, density):
+    """(scene, Stats, TexelSet): a black 4 m floor of 2 x 64 x 64 triangles
+    under a point bulb 1 m above (0.2, 0.1), baked at `default` with
+    `density` texels per metre and no anti-aliasing grid."""
     from baker.stats import Stats
     from scenes.generate import GltfBuilder, quad
     b = GltfBuilder()
@@ -583,8 +579,20 @@ def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
     b.light("bulb", "point", intensity=I_BULB, position=(0.2, 1.0, 0.1))
     scene = make_scene(b, "bake_fine_floor")
     st = Stats("bake")
-    tx = bake_scene(scene, bake_config("default", texel_density=16, resolution=16, photons=20_000,
-                                                texel_samples=1), st).texels
+    tx = bake_scene(scene, bake_config("default", texel_density=density, resolution=16, photons=20_000,
+                                       texel_samples=1), st).texels
+    return scene, st, tx
+
+
+def test_subtexel_triangles_are_shaded_at_their_corners(make_scene):
+    """A floor tessellated into triangles one texel wide under a point
+    light: each triangle is shaded at its three corner points only (3
+    points a triangle, not a point a texel), and its texels, interpolated
+    linearly from them, follow the light I H / (H^2 + r^2)^(3/2) within
+    0.3% on their triangle (the linear interpolation's error over a
+    triangle this small is below 0.1%; a wrong weight would be off by the
+    light's variation over a triangle, ~1.5%) and within 1% beyond it."""
+    scene, st, tx = _fine_floor_bake(make_scene, 16)
     n_tri = len(scene.triangles)
     assert st.counters["subtexel_triangles"] == n_tri == 2 * 64 * 64
     assert st.counters["points_shaded"] == 3 * n_tri and st.counters["texels_shaded"] == 0
@@ -616,16 +624,7 @@ def test_triangles_under_half_a_texel_share_one_point_per_texel_cell(make_scene)
     exactly, to rounding) at its cell's point: its map is one colour. A
     wrong point would be off by the light's variation over a texel, up to
     ~30% here."""
-    from baker.stats import Stats
-    from scenes.generate import GltfBuilder, quad
-    b = GltfBuilder()
-    black = b.material("black", (0.0,) * 3)
-    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0), subdiv=64), black)
-    b.light("bulb", "point", intensity=I_BULB, position=(0.2, 1.0, 0.1))
-    scene = make_scene(b, "bake_fine_floor")
-    st = Stats("bake")
-    tx = bake_scene(scene, bake_config("default", texel_density=4, resolution=16, photons=20_000,
-                                       texel_samples=1), st).texels
+    scene, st, tx = _fine_floor_bake(make_scene, 4)
     n_tri = len(scene.triangles)
     assert st.counters["subtexel_triangles"] == n_tri == 2 * 64 * 64
     assert st.counters["points_shaded"] == 16 * 16 and st.counters["texels_shaded"] == 0
