@@ -109,5 +109,18 @@ def run(func, *args):
                 print("interrupted: nothing was written", file=sys.stderr)
                 return exit_status()
             raise
-        # Ctrl-C stays noted until the process exits: Python's own handler put back here, one arriving before
-        # the exit would kill the process by the signal (exit -2, neither 0 nor 130)
+        finally:
+            _ignore_while_exiting()
+
+
+def _ignore_while_exiting():
+    """The command's work is over (its files written or removed): a Ctrl-C
+    or SIGTERM from here to the exit is ignored. Python's finalization puts
+    SIG_DFL back in place of a Python handler (not of SIG_IGN), and a signal
+    landing in that window would kill the process by the signal (exit -2,
+    neither 0 nor 130)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) is _note:
+            signal.signal(signum, signal.SIG_IGN)

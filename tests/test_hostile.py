@@ -464,6 +464,20 @@ def test_ctrl_c_at_start_up_prints_no_traceback(tmp_path):
             assert p.returncode == 130 and "Traceback" not in err, (delay, err)
 
 
+
+def test_ctrl_c_while_a_finished_command_exits_is_ignored():
+    # Python's finalization resets a Python signal handler to SIG_DFL: a Ctrl-C landing there, after the work
+    # is done, killed the process by the signal (exit -2). The finished command ignores it instead.
+    code = ("import sys, os, signal; sys.argv[0] = 'voxbake'; import baker; from baker.startup import run; "
+            "assert signal.getsignal(signal.SIGINT) is not signal.default_int_handler; "
+            "rc = run(lambda: 0); "
+            "assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN, signal.getsignal(signal.SIGINT); "
+            "assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN; "
+            "os.kill(os.getpid(), signal.SIGINT); os.kill(os.getpid(), signal.SIGTERM); raise SystemExit(rc)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, (p.returncode, p.stderr)
+
+
 # 10. The file does not depend on the thread count
 
 def test_bake_bytes_do_not_depend_on_the_thread_count(tmp_path):
