@@ -160,7 +160,7 @@ def cmd_bake(args):
     config = _configs(args, "bake", lambda: bake_config(
         args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
         preview_vpls=args.preview_vpls, texel_samples=args.texel_samples, texel_interpolate=args.texel_interpolate,
-        texel_indirect_stride=args.texel_indirect_stride,
+        texel_indirect_stride=args.texel_indirect_stride, texel_gather=args.texel_gather,
         **_solver_overrides(args)))
     stats = Stats("bake")
     with threads(args.threads):

@@ -234,7 +234,7 @@ def _render_parser(sub):
 
 
 def _bake_parser(sub):
-    from .config import MAX_INDIRECT_STRIDE, MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
+    from .config import MAX_GATHER, MAX_INDIRECT_STRIDE, MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
     p = sub.add_parser("bake", help="bake lightmaps into a glTF file a viewer can walk through",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Bake a scene's diffuse global illumination into lightmaps and write a glTF\n"
@@ -269,6 +269,10 @@ def _bake_parser(sub):
                         "S-th texel of every S-th row and interpolated between them where they agree; the lamps' "
                         "and punctual lights' at every texel "
                         f"(preset: {per_preset(lambda p: p.texel_indirect_stride)}; 1: everything at every texel)")
+    p.add_argument("--texel-gather", type=integer(0, MAX_GATHER), metavar="RAYS",
+                   help="rays per point of the bounced light's sparse lattice (--texel-indirect-stride) that gather it from the voxel "
+                        "solution (preset: " + per_preset(lambda p: p.texel_gather) + "; 0: a lightcut over the "
+                        "voxels' lights instead, slower)")
     p.add_argument("--texels", choices=TEXEL_SOURCES,
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
     run_args(p)

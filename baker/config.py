@@ -121,6 +121,7 @@ UV_MODES = ("per-triangle", "xatlas")
 TEXEL_SOURCES = ("voxels", "lightcuts")
 MAX_TEXEL_SAMPLES = 8
 MAX_INDIRECT_STRIDE = 16
+MAX_GATHER = 65_536
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,10 @@ class BakeConfig:
     them where they agree within texel_contrast, while the sharp light
     (the emitters' VPLs, punctual lights) is shaded at every texel and
     anti-aliasing point (1: all together at every point, one cut of the
-    lightcuts' cap)."""
+    lightcuts' cap); texel_gather: with a stride above 1, the smooth
+    lattice's bounced light is gathered from the voxel solution by this
+    many rays per point (lightmap/gather.py) instead of a cut over the
+    voxels' VPLs (0: the cut)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
@@ -158,6 +162,7 @@ class BakeConfig:
     texel_interpolate: float = 0.0
     texel_indirect_stride: int = 1
     texel_indirect_cap: int = 4000
+    texel_gather: int = 0
     preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
 
     def __post_init__(self):
@@ -173,6 +178,8 @@ class BakeConfig:
                               f"(got {self.texel_indirect_stride})")
         if self.texel_indirect_cap < 1:
             raise ConfigError(f"the bounced light's cut cap must be >= 1 (got {self.texel_indirect_cap})")
+        if not 0 <= self.texel_gather <= MAX_GATHER:
+            raise ConfigError(f"the bounced light's gather rays must lie in [0, {MAX_GATHER}] (got {self.texel_gather})")
         if self.uv not in UV_MODES:
             raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
         if self.texel_density is not None and not (math.isfinite(self.texel_density) and self.texel_density > 0):

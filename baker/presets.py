@@ -21,8 +21,9 @@ class Preset:
     lightcuts error bound of a bake's texels; texel_samples,
     texel_contrast, texel_interpolate: the texels' anti-aliasing grid, what
     counts as a sharp change, and adaptive shading's agreement;
-    texel_indirect_stride, texel_indirect_cap: the bounced light's sparse
-    lattice and its cuts' cap (config.BakeConfig); texel_cap: the cap of
+    texel_indirect_stride, texel_indirect_cap, texel_gather: the bounced
+    light's sparse lattice, its cuts' cap, and its gather rays per point
+    that replace those cuts (config.BakeConfig); texel_cap: the cap of
     the texels' cuts of the emitters' light (None: the lightcuts')."""
     name: str
     about: str
@@ -35,6 +36,7 @@ class Preset:
     texel_interpolate: float
     texel_indirect_stride: int = 1
     texel_indirect_cap: int = 4000
+    texel_gather: int = 0
     texel_cap: int | None = None
 
 
@@ -51,18 +53,19 @@ PRESETS = {p.name: p for p in (
                         max_bounces=16),
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
            texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0),
-    Preset("default", "texels shaded by lightcuts over the voxels' VPLs, shadow edges anti-aliased",
+    Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
+                      "anti-aliased",
            SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-2,
                         max_bounces=64),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
-           texel_indirect_stride=2, texel_indirect_cap=1000, texel_cap=400),
+           texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400),
     Preset("high", "finer voxels, more photons, directions and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
-           texel_indirect_stride=2, texel_indirect_cap=8000),
+           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024),
 )}
 
 
@@ -98,7 +101,7 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
 
 def bake_config(name="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
-                texel_interpolate=None, texel_indirect_stride=None, **solver_overrides) -> BakeConfig:
+                texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
     bound; the rest as config.BakeConfig, solver_overrides as
@@ -120,6 +123,7 @@ def bake_config(name="default", uv="per-triangle", texel_density=None, texels=No
         float(texel_interpolate if texel_interpolate is not None else p.texel_interpolate),
         int(texel_indirect_stride if texel_indirect_stride is not None else p.texel_indirect_stride),
         int(p.texel_indirect_cap),
+        int(texel_gather if texel_gather is not None else p.texel_gather),
         preview_lightcuts=lightcuts_config(name, seed=solver.seed))
 
 
@@ -137,6 +141,8 @@ def help_table() -> str:
                     f"           a bake's texels from {p.texels}"
                     + (f" (epsilon {p.texel_epsilon:g}, {p.texel_samples}x{p.texel_samples} at edges, "
                        f"cut <= {p.texel_cap or lc.cap:,}, interpolate {p.texel_interpolate:g}, bounced light and "
-                       f"sky every {p.texel_indirect_stride} texels, cut <= {p.texel_indirect_cap:,})"
+                       f"sky every {p.texel_indirect_stride} texels, "
+                       + (f"bounced by {p.texel_gather} gather rays)" if p.texel_gather else
+                          f"cut <= {p.texel_indirect_cap:,})")
                        if p.texels == "lightcuts" else ""))
     return "presets:\n" + "\n".join(rows)

@@ -72,7 +72,9 @@ def test_bake_refuses_bad_settings(tmp_path):
              (["-o", tmp_path / "x.glb", "--texel-samples", "9"], "argument --texel-samples: must lie in 1..8"),
              (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "0"],
               "argument --texel-indirect-stride: must lie in 1..16"),
-             (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "nan"], "argument --texel-indirect-stride")]
+             (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "nan"], "argument --texel-indirect-stride"),
+             (["-o", tmp_path / "x.glb", "--texel-gather", "-1"], "argument --texel-gather: must lie in 0..65,536"),
+             (["-o", tmp_path / "x.glb", "--texel-gather", "1e9"], "argument --texel-gather")]
     for args, message in cases:
         refused(*cli("bake", "cornell_box", *args)[::2], message)
     assert os.listdir(tmp_path) == []

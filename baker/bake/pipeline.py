@@ -39,7 +39,9 @@ class BakeResult:
             v = self.lights.vpls.counts()
             rows += [("VPLs / average cut", f"{v['vpls']:,} ({v['vpls_direct']:,} direct, {v['vpls_indirect']:,} "
                                             f"indirect, {v['vpls_sky']:,} sky) / cut mean {ts.cut_mean:.0f}, max "
-                                            f"{ts.cut_max}, {ts.shadow_rays:,} shadow rays")]
+                                            f"{ts.cut_max}, {ts.shadow_rays:,} shadow rays"
+                                            + (f"; bounced light by {ts.gather_rays:,} gather rays"
+                                               if ts.gather_rays else ""))]
         else:
             rows += [("VPLs / average cut", "- (preview: texel values from the voxel solution)")]
         rows += [("texels", f"{c['texels']:,} in {c['charts']:,} maps ({c['texels_covered']:,} sampled, "
@@ -99,7 +101,8 @@ def _meta(scene, config, solution, counts) -> dict:
             "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
             "texel_samples": config.texel_samples if config.lightcuts else 1,
             "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,
-            "texel_indirect": {"stride": config.texel_indirect_stride, "cap": config.texel_indirect_cap}
+            "texel_indirect": {"stride": config.texel_indirect_stride, "cap": config.texel_indirect_cap,
+                               "gather": config.texel_gather}
             if config.lightcuts else None,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},

@@ -38,8 +38,9 @@ STRIDE = 2          # adaptive shading: texels on this lattice are shaded first 
 class TexelStats:
     """What lightcuts texels cost: the cut sizes and shadow rays over the
     points shaded, texels shaded and interpolated (adaptive shading), small
-    triangles' sides shaded at their corners, and texels anti-aliased on a
-    texel_samples x texel_samples grid."""
+    triangles' sides shaded at their corners, texels anti-aliased on a
+    texel_samples x texel_samples grid, and the rays that gathered the
+    bounced light (config.texel_gather)."""
     cut_mean: float
     cut_max: int
     shadow_rays: int
@@ -49,6 +50,7 @@ class TexelStats:
     subtexel_triangles: int
     texels_antialiased: int
     texel_samples: int
+    gather_rays: int = 0
 
 
 @dataclass(frozen=True)
@@ -174,13 +176,16 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
     texel_interpolate as `interpolate`)."""
     from ..lights import irradiance, split_lights
+    from .gather import gather_bounced
     from ..startup import checkpoint
     bvh, surfaces = prepared.bvh, prepared.surfaces
     epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed
     stride = config.texel_indirect_stride
     bounced = None
+    gather = 0
     if stride > 1:   # sharp light at every point, the smooth light on a sparse lattice (shade_bounced below)
-        lights, bounced = split_lights(lights, seed)
+        lights, bounced = split_lights(lights, seed, tree=config.texel_gather == 0)
+        gather = config.texel_gather if bounced is not None else 0
     samples, contrast, interpolate = config.texel_samples, config.texel_contrast, config.texel_interpolate
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
@@ -195,7 +200,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     normals = side_normals(corners, ttri, tback)
     found = covered & (ttri >= 0)
     values = np.zeros((len(point), 3))
-    cuts, rays = [], [0]
+    cuts, rays, gathered, uncut = [], [0], [0], [0]
 
     def shade(pts, nrm, ok, light=lights, floor=None, c_max=cap, exact=True, count=True):
         out = np.zeros((len(pts), 3))
@@ -213,7 +218,18 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     def shade_bounced(pts, nrm, floor):
         """The smooth light at points whose sharp light has luminance
         `floor`: its cut's error is bounded against the whole."""
-        return shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
+        if gather and not len(bounced.sky):   # no sky, and the voxels' light by the gather: no cut at all
+            out = np.zeros((len(pts), 3))
+            uncut[0] += len(pts)
+        else:
+            out = shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
+        if gather:   # `bounced` holds the sky alone: the voxels' light by the gather
+            for a in range(0, len(pts), BATCH):
+                b = slice(a, a + BATCH)
+                out[b] += gather_bounced(prepared, solution, pts[b], nrm[b], lift, gather)
+                checkpoint()
+            gathered[0] += len(pts) * gather
+        return out
 
     if len(small):
         cv = small_triangle_light(lambda p, n: shade(p, n, np.ones(len(p), bool)),
@@ -275,9 +291,10 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     values += indirect   # the sub-points' sharp light, the texel's smooth light
     ts = finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
     cuts = np.concatenate(cuts) if cuts else np.zeros(0, np.int64)
-    stats = TexelStats(float(cuts.mean()) if len(cuts) else 0.0, int(cuts.max(initial=0)), rays[0], int(len(cuts)),
+    stats = TexelStats(float(cuts.mean()) if len(cuts) else 0.0, int(cuts.max(initial=0)), rays[0],
+                       int(len(cuts)) + uncut[0],
                        int(len(todo) - between.sum()), int(between.sum()), int(len(small)), int(len(aa)),
-                       int(samples))
+                       int(samples), gathered[0])
     return ts, stats
 
 

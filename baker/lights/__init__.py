@@ -51,7 +51,7 @@ def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -
     return Lights(vpls, tree, np.ascontiguousarray(vpls.normal[m:], np.float64))
 
 
-def split_lights(lights: Lights, seed=0) -> tuple[Lights, Lights | None]:
+def split_lights(lights: Lights, seed=0, tree=True) -> tuple[Lights, Lights | None]:
     """(sharp, smooth), each with its own tree: the emitters' VPLs alone,
     and the voxels' VPLs with the sky's directions (None: neither). The
     smooth part varies slowly over a surface (bounced light, and the sky's,
@@ -60,7 +60,9 @@ def split_lights(lights: Lights, seed=0) -> tuple[Lights, Lights | None]:
     point's irradiance is the sum of the two; shade the smooth part with
     exact=False (no punctual lights: they belong to the sharp part). Where
     lights.sky is None (the sky's directions are VPLs of its tree), the
-    sky stays with the sharp part."""
+    sky stays with the sharp part. tree=False: the smooth part's voxel
+    VPLs get no tree (its cuts then see the sky alone: a bake that gathers
+    the bounced light from the voxels, lightmap/gather.py)."""
     v = lights.vpls
     if lights.sky is None:
         direct = v.select(~v.indirect)
@@ -73,7 +75,7 @@ def split_lights(lights: Lights, seed=0) -> tuple[Lights, Lights | None]:
     if not v.indirect.any() and sky is None:
         return d, None
     bounced = v.select(v.indirect)
-    return d, Lights(bounced, build_tree(bounced, seed) if len(bounced) else None,
+    return d, Lights(bounced, build_tree(bounced, seed) if len(bounced) and tree else None,
                      np.zeros((0, 3)) if sky is None else sky)
 
 
