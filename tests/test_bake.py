@@ -369,7 +369,7 @@ def test_lightcuts_bake_dark_rooms_stay_dark(make_scene, name, builder, dark):
 def test_furnace_bake_default_tier():
     """Furnace box at the default tier: H = E / (1 - rho). Mean within 3%,
     90% of texels within 0.80-1.10 (measured 0.990, 0.90-1.03; the
-    bounced light gathered, not cut: 0.989, 0.90-1.03). What is
+    bounced light by a cut instead of the gather: 0.989, 0.90-1.03). What is
     low is the concave edges and corners: there the neighbouring wall's
     lamp VPLs lie at distance r < sqrt(A), where the bounded near-field term
     Phi cos cos / (pi r^2 + A) gives less than the point form (the bias
