@@ -74,7 +74,12 @@ def test_bake_refuses_bad_settings(tmp_path):
               "argument --texel-indirect-stride: must lie in 1..16"),
              (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "nan"], "argument --texel-indirect-stride"),
              (["-o", tmp_path / "x.glb", "--texel-gather", "-1"], "argument --texel-gather: must lie in 0..65,536"),
-             (["-o", tmp_path / "x.glb", "--texel-gather", "1e9"], "argument --texel-gather")]
+             (["-o", tmp_path / "x.glb", "--texel-gather", "1e9"], "argument --texel-gather"),
+             # 32 maps of 512 x 512 (every triangle's map at its cap): 2 GiB, over a budget of 500 MiB
+             (["-o", tmp_path / "x.glb", "--texel-density", "1e6", "--memory-budget", "500"],
+              "--texel-density 1e+06 (1e-06 scene units a texel) asks for about 8,388,608 texels (32 pages of "
+              "512x512), about 2,048 MiB to bake, over the memory budget (--memory-budget) of 500 MiB"),
+             (["-o", tmp_path / "x.glb", "--texel-density", "1e5", "--uv", "xatlas"], "over the memory budget")]
     for args, message in cases:
         refused(*cli("bake", "cornell_box", *args)[::2], message)
     assert os.listdir(tmp_path) == []
@@ -246,3 +251,20 @@ def test_output_cut_short_by_its_reader():
     p.stdout.close()
     err = p.stderr.read().decode()
     assert p.wait() == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_a_texel_density_beyond_memory_is_refused_before_any_work(tmp_path):
+    """The walkthrough (102k triangles) at 10,000 texels a unit: 2.7e10
+    texels. Refused from the layout's own count before the solve starts
+    (no stage ran: the stats file is never written), nothing on disk."""
+    from baker import load_scene
+    from baker.bake import bake_config, bake_scene
+    from baker.errors import BudgetError
+    rc, out, err = cli("bake", "walkthrough", "-o", tmp_path / "w.glb", "--texel-density", "1e4",
+                       "--stats", tmp_path / "s.json")
+    assert rc == 2 and err.startswith("error: ") and err.count("\n") == 1, err
+    assert "asks for about 26,805,272,576 texels" in err and "lower --texel-density" in err
+    assert os.listdir(tmp_path) == []
+    with pytest.raises(BudgetError, match="asks for about 8,388,608 texels") as e:
+        bake_scene(load_scene("cornell_box"), bake_config("preview", texel_density=1e6, memory_budget_mb=100))
+    assert e.value.path.endswith("cornell_box.glb")

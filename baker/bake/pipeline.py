@@ -111,18 +111,26 @@ def _meta(scene, config, solution, counts) -> dict:
 
 def _bake(scene, config, stats, progress, bvh, surfaces):
     from ..lightmap import atlas_for, layout_for, texel_size_for
+    from ..lightmap.values import check_texel_budget
     from ..lights import build_lights, ordered_vpls
     from ..scene import camera_for, prepare
     from ..solve import solve
     from ..startup import checkpoint
     from .mesh import baked_scene
+    budget = config.solver.memory_budget_mb
+    if config.texel_density:   # refused before any work when the pages cannot fit
+        check_texel_budget(scene, texel_size_for(None, config.texel_density), config.uv, budget,
+                           f"--texel-density {config.texel_density:g}")
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
     scene = prepared.scene
     solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
     with stats.stage("charts"):
-        charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
+        texel = texel_size_for(solution, config.texel_density)
+        if not config.texel_density:
+            check_texel_budget(scene, texel, config.uv, budget, "one texel per voxel cell")
+        charts = layout_for(scene, texel, config.uv)
     checkpoint()
     texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress)
     with stats.stage("atlas"):

@@ -92,6 +92,52 @@ def layout_for(scene, texel_size, uv="per-triangle"):
     return charts_for(scene, texel_size)
 
 
+# What a bake holds per texel at its peak (its point, normal, values, masks and indices while it shades, then the
+# stored pages): the modern hall's 4.9 M texels peaked at 1.1-1.2 GiB in all
+BYTES_PER_TEXEL = 256
+XATLAS_PADDING = 1.3   # an xatlas page's texels over the surface's: charts' borders and packing gaps
+
+
+def texel_estimate(scene, texel_size, uv="per-triangle") -> int:
+    """Texels a bake's layout will hold at this texel size, before any
+    work: the per-triangle maps' own count (their sizes follow from the
+    corners alone); for xatlas the surface's area (both faces of two-sided
+    triangles) in texels, plus its padding."""
+    if uv == "xatlas":
+        c = scene.triangle_corners()
+        area = 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
+        faces = 1 + np.asarray(scene.double_sided[scene.material_ids], np.int64)
+        return int(np.ceil(XATLAS_PADDING * float((area * faces).sum()) / float(texel_size) ** 2))
+    return charts_for(scene, texel_size).texel_count
+
+
+def machine_memory_mb() -> float:
+    """This machine's physical memory in MiB (inf where it cannot be read)."""
+    import os
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2 ** 20
+    except (ValueError, OSError, AttributeError):
+        return float("inf")
+
+
+def check_texel_budget(scene, texel_size, uv, memory_budget_mb, what):
+    """Raises BudgetError, naming `what` set the texel size, when the
+    layout's texels would need more than the memory budget or this
+    machine's memory."""
+    from ..errors import BudgetError
+    from .atlas import PAGE
+    n = texel_estimate(scene, texel_size, uv)
+    need = n * BYTES_PER_TEXEL / 2 ** 20
+    machine = machine_memory_mb()
+    limit = min(float(memory_budget_mb), machine)
+    if need > limit:
+        whose = "this machine's memory" if machine < memory_budget_mb else "the memory budget (--memory-budget)"
+        raise BudgetError(f"{what} ({texel_size:.3g} scene units a texel) asks for about {n:,} texels "
+                          f"({-(-n // PAGE ** 2):,} pages of {PAGE}x{PAGE}), about {need:,.0f} MiB to bake, over "
+                          f"{whose} of {limit:,.0f} MiB: lower --texel-density", scene.path)
+    return n
+
+
 def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0):
     """(map_offsets, map_size, point, covered, texel_tri, texel_back, owner,
     corners2d): points clamped onto an edge move `inset` texels inward
