@@ -184,9 +184,10 @@ def side_normals(corners, texel_tri, texel_back):
     """(N, 3) unit normal of each texel's triangle side (0 where none)."""
     n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    out = n[np.maximum(texel_tri, 0)]
-    out[texel_back] *= -1
-    out[texel_tri < 0] = 0
+    out = np.zeros((len(texel_tri), 3))
+    idx = np.nonzero(texel_tri >= 0)[0]   # most of a per-triangle layout's texels are its maps' empty margins
+    out[idx] = n[texel_tri[idx]]
+    out[idx[texel_back[idx]]] *= -1
     return out
 
 
