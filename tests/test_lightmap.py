@@ -306,6 +306,36 @@ def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_p
     assert np.all(plain[point[:, 0] == 5, 0] == 2.0)
 
 
+
+def test_a_second_sparse_pass_shades_only_what_its_agreement_test_adds(tmp_path):
+    """The gather's two passes (values.lightcuts_texels): a first
+    sparse_bounced with no agreement test records what it shaded in
+    `known`; the second, with the test, shades only the texels its test
+    adds (those at x = 5, across the step) and gives what one pass with
+    the test gives."""
+    from baker.lightmap.values import sparse_bounced
+    n = 9
+    bvh, point, normals = _floor_map(tmp_path, n=n)
+    shaded = []
+
+    def field(p, nrm, floor):
+        shaded.append(p.copy())
+        return np.where((p[:, 0] > 4.5)[:, None], 3.0, 1.0) * np.ones(3)
+
+    ok = np.ones(n * n, bool)
+    args = (bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]), np.array([n]), 2, 0.1)
+    one = sparse_bounced(field, *args, agree=0.2)
+    shaded.clear()
+    known = (np.zeros(n * n, bool), np.zeros((n * n, 3)))
+    first = sparse_bounced(field, *args, known=known)
+    n_first = len(np.concatenate(shaded))
+    assert known[0].sum() == n_first and np.all(first[point[:, 0] == 5, 0] == 2.0)
+    shaded.clear()
+    second = sparse_bounced(field, *args, agree=0.2, known=known)
+    again = np.concatenate(shaded)
+    assert len(again) > 0 and np.all(again[:, 0] == 5.0)
+    np.testing.assert_array_equal(second, one)
+
 def test_single_colour_maps_are_found_as_a_loop_over_maps_finds_them():
     """atlas._single_colour (all maps at once) against the rule map by map:
     a map is one colour when its filled texels spread within CONSTANT_REL

@@ -217,7 +217,11 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     (the emitters' VPLs, punctual lights), and the smooth part (the
     voxels' VPLs, the sky: split_lights) is shaded on a sparse lattice
     (sparse_bounced), a sub-texel triangle's at its centroid; the sharp
-    part's edges alone call for anti-aliasing.
+    part's edges alone call for anti-aliasing. With config.texel_gather
+    the bounced light is gathered (gather.py), whose error needs no floor:
+    the smooth part is then shaded first, and the sharp part's cuts are
+    bounded against the texel's whole light (their floor: the smooth
+    light there), as the smooth part's cuts are otherwise.
 
     config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
@@ -279,13 +283,27 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         return out
 
     if len(small):
-        cv = small_triangle_light(lambda p, n: shade(p, n, np.ones(len(p), bool)),
+        cv = small_triangle_light(lambda p, n, f: shade(p, n, np.ones(len(p), bool), floor=f),
                                   shade_bounced if bounced is not None else None, cpts,
                                   side_normals(corners, layout.tri[small], layout.back[small]), once,
                                   surfaces.arrays.tri_material[layout.tri[small]],
-                                  CLUSTER_CELL * texel_size_for(solution, config.texel_density))
+                                  CLUSTER_CELL * texel_size_for(solution, config.texel_density), bool(gather))
         corner_values(layout, corners, small, cv, point, off, values)
     want = found & ~by_corners
+    bounced_args = None
+    known = None
+    sfloor = None   # the smooth light's luminance at each texel: what the sharp cuts' error is bounded against too
+    if bounced is not None:
+        reach = np.inf if layout.per_triangle else 1.5 * stride * texel   # xatlas: another chart
+        bounced_args = (bvh.arrays, point, normals, want & ~inside, (ttri >= 0) & ~inside, off, size, stride, lift,
+                        reach)
+        if gather:   # the gathered smooth light first (it takes no floor), its agreement test once the sharp is known
+            known = (np.zeros(len(point), bool), np.zeros((len(point), 3)))
+            sfloor = sparse_bounced(shade_bounced, bounced_args[0], np.zeros((len(point), 3)), *bounced_args[1:],
+                                    known=known) @ LUMINANCE
+
+    def floor_at(idx):
+        return None if sfloor is None else sfloor[idx]
     todo = np.nonzero(want)[0]
     between = np.zeros(len(point), bool)
     if interpolate > 0:   # shade the even lattice, then each texel between agreeing lattice texels takes their mean
@@ -294,7 +312,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         qi, qj = q % size[m_of], q // size[m_of]
         on = want & (qi % STRIDE == 0) & (qj % STRIDE == 0)
         first = np.nonzero(on)[0]
-        values[first] = shade(point[first], normals[first], np.ones(len(first), bool))
+        values[first] = shade(point[first], normals[first], np.ones(len(first), bool), floor=floor_at(first))
         step = STRIDE // 2
         while step >= 1:
             level = want & (qi % step == 0) & (qj % step == 0) & ~on
@@ -302,17 +320,16 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
             got = between_lattice(values, values @ LUMINANCE, on & ~inside, level & ~inside, point, normals, off, size,
                                   reach, float(interpolate), step)
             rest = np.nonzero(level & ~got)[0]
-            values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool))
+            values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool), floor=floor_at(rest))
             between |= got
             on |= level
             step //= 2
     else:
-        values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool))
+        values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool), floor=floor_at(todo))
     indirect = np.zeros((len(point), 3))
     if bounced is not None:
-        reach = np.inf if layout.per_triangle else 1.5 * stride * texel   # xatlas: another chart
-        indirect = sparse_bounced(shade_bounced, bvh.arrays, values, point, normals, want & ~inside,
-                                  (ttri >= 0) & ~inside, off, size, stride, lift, reach, float(contrast))
+        indirect = sparse_bounced(shade_bounced, bounced_args[0], values, *bounced_args[1:], float(contrast),
+                                  known=known)
     aa = np.zeros(0, np.int64)
     if samples > 1:
         # the sharp part's edges (the smooth part is the texel's own: slow by construction, shaded apart)
@@ -330,7 +347,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
                                        layout.origin if per else np.zeros((1, 2)),
                                        layout.texel if per else np.zeros(1), per)
             n_sub = samples * samples
-            sub = shade(pts, np.repeat(normals[aa], n_sub, axis=0), ok)
+            sub = shade(pts, np.repeat(normals[aa], n_sub, axis=0), ok,
+                        floor=None if sfloor is None else np.repeat(indirect[aa] @ LUMINANCE, n_sub))
             n_ok = ok.reshape(-1, n_sub).sum(axis=1)
             mean = sub.reshape(-1, n_sub, 3).sum(axis=1) / np.maximum(n_ok, 1)[:, None]
             keep = n_ok > 0  # every sub-point hidden from the texel's own: its own value stays
@@ -346,7 +364,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
 
 
 def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off, size, stride, lift, reach=np.inf,
-                   agree=0.0):
+                   agree=0.0, known=None):
     """(N, 3) the smooth light (bounced, and the sky's: split_lights) of
     the `want` texels, shaded on a sparse lattice of each map and bilinear
     between. A map's lattice columns are every stride-th one and its last
@@ -362,8 +380,24 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
     falls off faster than a bilinear lattice follows); every other texel
     is shaded itself. direct (N, 3): each texel's direct light, the floor
     of the cuts' error bound (a lattice texel takes the largest of the
-    texels it serves)."""
+    texels it serves). known: (have (N,) bool, values (N, 3)), the texels
+    whose smooth light an earlier call shaded (not shaded again; what
+    this call shades is added): a second pass over the same texels with
+    their direct light known shades only what its agreement test adds
+    (for a smooth part whose error bound takes no floor: the gather)."""
     out = np.zeros((len(point), 3))
+
+    def shaded(idx, floors):
+        if known is None:
+            return shade_bounced(point[idx], normals[idx], floors)
+        have, vals = known
+        new = ~have[idx]
+        if new.any():
+            j = idx[new]
+            vals[j] = shade_bounced(point[j], normals[j], floors[new])
+            have[j] = True
+        return vals[idx]
+
     k = np.nonzero(want)[0]
     if not len(k):
         return out
@@ -406,7 +440,7 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
     floor[k[~ok]] = lum[~ok]
     at = np.nonzero(need_at)[0]
     got = np.zeros((len(point), 3))
-    got[at] = shade_bounced(point[at], normals[at], floor[at])
+    got[at] = shaded(at, floor[at])
     if agree > 0:
         between = ok & ~own
         g = got @ LUMINANCE
@@ -416,7 +450,7 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
             lo = np.where(w > 0, np.minimum(lo, g[idx]), lo)
         bad = np.nonzero(between & (hi - lo > agree * (hi + lum)))[0]
         if len(bad):
-            got[k[bad]] = shade_bounced(point[k[bad]], normals[k[bad]], lum[bad])
+            got[k[bad]] = shaded(k[bad], lum[bad])
             ok[bad] = False
     acc = np.zeros((len(k), 3))
     for idx, w in corners:
@@ -475,7 +509,7 @@ def point_clusters(points, normals, material, cell):
     return order[first], of, normal
 
 
-def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell):
+def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell, smooth_first=False):
     """(m, 3, 3) the light at sub-texel triangles' shading points (m, 3, 3)
     with their sides' unit normals (m, 3): at each corner, or for those
     shaded once (corner_points) at their cluster's point (point_clusters,
@@ -483,22 +517,34 @@ def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell
     sharp light; shade_smooth(points, normals, floors) -> (n, 3) the smooth
     light (None: none apart), once per triangle at its centroid or its
     cluster's point, its cut bounded against the brightest sharp light of
-    the points it serves. Returns (light, points shaded once)."""
+    the points it serves. smooth_first: the smooth light is shaded first
+    (its own error takes no floor: the gather) and bounds the sharp
+    light's cuts instead, shade(points, normals, floors). Returns
+    (light, points shaded once)."""
     three = np.nonzero(~once)[0]
     one = np.nonzero(once)[0]
     rep, of, cnormal = point_clusters(pts[one, 0], normals[one], material[one], cell)
-    got = shade(np.concatenate([pts[three].reshape(-1, 3), pts[one[rep], 0]]),
+    sharp_at = (np.concatenate([pts[three].reshape(-1, 3), pts[one[rep], 0]]),
                 np.concatenate([np.repeat(normals[three], 3, axis=0), cnormal]))
+    smooth_at = (np.concatenate([pts[three].mean(axis=1), pts[one[rep], 0]]), np.concatenate([normals[three], cnormal]))
+    smooth = None
+    if shade_smooth is not None and smooth_first:
+        smooth = shade_smooth(*smooth_at, np.zeros(len(smooth_at[0])))
+        lum = smooth @ LUMINANCE
+        got = shade(*sharp_at, np.concatenate([np.repeat(lum[:len(three)], 3), lum[len(three):]]))
+    else:
+        got = shade(*sharp_at, None)
     out = np.empty((len(pts), 3, 3))
     out[three] = got[:3 * len(three)].reshape(-1, 3, 3)
     out[one] = got[3 * len(three):][of][:, None, :]
-    if shade_smooth is not None:
+    if smooth is not None:
+        out[three] += smooth[:len(three), None, :]
+        out[one] += smooth[len(three):][of][:, None, :]
+    elif shade_smooth is not None:
         lum = out @ LUMINANCE
         floor = np.zeros(len(rep))
         np.maximum.at(floor, of, lum[one, 0])
-        smooth = shade_smooth(np.concatenate([pts[three].mean(axis=1), pts[one[rep], 0]]),
-                              np.concatenate([normals[three], cnormal]),
-                              np.concatenate([lum[three].max(axis=1), floor]))
+        smooth = shade_smooth(*smooth_at, np.concatenate([lum[three].max(axis=1), floor]))
         out[three] += smooth[:len(three), None, :]
         out[one] += smooth[len(three):][of][:, None, :]
     return out
