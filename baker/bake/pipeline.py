@@ -126,11 +126,8 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     scene = prepared.scene
     solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
-    with stats.stage("charts"):
-        texel = texel_size_for(solution, config.texel_density)
-        if not config.texel_density:
-            check_texel_budget(scene, texel, config.uv, budget, "one texel per voxel cell")
-        charts = layout_for(scene, texel, config.uv)
+    with stats.stage("charts"):   # (one texel per voxel cell: the voxelization's own budget bounds it)
+        charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
     checkpoint()
     texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress)
     with stats.stage("atlas"):
