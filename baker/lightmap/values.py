@@ -299,9 +299,9 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
         bounced_args = (bvh.arrays, point, normals, want & ~inside, (ttri >= 0) & ~inside, off, size, stride, lift,
                         reach)
         if gather:   # the gathered smooth light first (it takes no floor), its agreement test once the sharp is known
-            known = (np.zeros(len(point), bool), np.zeros((len(point), 3)))
-            sfloor = sparse_bounced(shade_bounced, bounced_args[0], np.zeros((len(point), 3)), *bounced_args[1:],
-                                    known=known) @ LUMINANCE
+            known = (np.full(len(point), -1, np.int32), [])
+            sfloor = (sparse_bounced(shade_bounced, bounced_args[0], np.zeros((len(point), 3)), *bounced_args[1:],
+                                     known=known) @ LUMINANCE).astype(np.float32)   # a floor: float32 is plenty
 
     def floor_at(idx):
         return None if sfloor is None else sfloor[idx]
@@ -381,9 +381,11 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
     falls off faster than a bilinear lattice follows); every other texel
     is shaded itself. direct (N, 3): each texel's direct light, the floor
     of the cuts' error bound (a lattice texel takes the largest of the
-    texels it serves). known: (have (N,) bool, values (N, 3)), the texels
-    whose smooth light an earlier call shaded (not shaded again; what
-    this call shades is added): a second pass over the same texels with
+    texels it serves). known: (slot (N,) int32, rows: a list of (n, 3)
+    arrays), where an earlier call put the smooth light it shaded (texel
+    i's is row slot[i] of the rows stacked; -1: not shaded), not shaded
+    again (what this call shades is added): a second pass over the same
+    texels with
     their direct light known shades only what its agreement test adds
     (for a smooth part whose error bound takes no floor: the gather)."""
     out = np.zeros((len(point), 3))
@@ -391,13 +393,14 @@ def sparse_bounced(shade_bounced, bvh, direct, point, normals, want, usable, off
     def shaded(idx, floors):
         if known is None:
             return shade_bounced(point[idx], normals[idx], floors)
-        have, vals = known
-        new = ~have[idx]
+        slot, rows = known   # rows for the shaded texels only: a layout's texels are mostly margins
+        new = slot[idx] < 0
         if new.any():
             j = idx[new]
-            vals[j] = shade_bounced(point[j], normals[j], floors[new])
-            have[j] = True
-        return vals[idx]
+            base = sum(len(r) for r in rows)
+            rows.append(shade_bounced(point[j], normals[j], floors[new]))
+            slot[j] = base + np.arange(len(j))
+        return np.concatenate(rows)[slot[idx]]
 
     k = np.nonzero(want)[0]
     if not len(k):
