@@ -278,6 +278,23 @@ def test_sparse_bounced_light_is_exact_on_a_linear_field_and_stops_at_a_wall(tmp
     assert sum(shaded) < 0.6 * n * n
 
 
+def _step_field(tmp_path, n=9):
+    """One n x n map of an open plane under a smooth light of 1 with a step
+    to 3 from x = 4.5 on: (n, texel points, the light as sparse_bounced's
+    shade function, the points it was asked for, sparse_bounced's
+    arguments after the shade function)."""
+    bvh, point, normals = _floor_map(tmp_path, n=n)
+    shaded = []
+
+    def field(p, nrm, floor):
+        shaded.append(p.copy())
+        return np.where((p[:, 0] > 4.5)[:, None], 3.0, 1.0) * np.ones(3)
+
+    ok = np.ones(n * n, bool)
+    return n, point, field, shaded, (bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]),
+                                     np.array([n]), 2, 0.1)
+
+
 def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_path):
     """sparse_bounced with agree > 0 on one 9 x 9 map of an open plane: a
     light of 1 with a step to 3 from x = 4.5 on. The texels whose lattice
@@ -287,16 +304,7 @@ def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_p
     too); without the check (agree 0) the texels at x = 5 take the
     lattice's mean, 2."""
     from baker.lightmap.values import sparse_bounced
-    n = 9
-    bvh, point, normals = _floor_map(tmp_path, n=n)
-    shaded = []
-
-    def field(p, nrm, floor):
-        shaded.append(p.copy())
-        return np.where((p[:, 0] > 4.5)[:, None], 3.0, 1.0) * np.ones(3)
-
-    ok = np.ones(n * n, bool)
-    args = (bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]), np.array([n]), 2, 0.1)
+    n, point, field, shaded, args = _step_field(tmp_path)
     out = sparse_bounced(field, *args, agree=0.2)
     np.testing.assert_array_equal(out[:, 0], np.where(point[:, 0] > 4.5, 3.0, 1.0))
     got = np.concatenate(shaded)
@@ -306,7 +314,6 @@ def test_sparse_smooth_light_shades_the_texels_where_its_lattice_disagrees(tmp_p
     assert np.all(plain[point[:, 0] == 5, 0] == 2.0)
 
 
-
 def test_a_second_sparse_pass_shades_only_what_its_agreement_test_adds(tmp_path):
     """The gather's two passes (values.lightcuts_texels): a first
     sparse_bounced with no agreement test records what it shaded in
@@ -314,16 +321,7 @@ def test_a_second_sparse_pass_shades_only_what_its_agreement_test_adds(tmp_path)
     adds (those at x = 5, across the step) and gives what one pass with
     the test gives."""
     from baker.lightmap.values import sparse_bounced
-    n = 9
-    bvh, point, normals = _floor_map(tmp_path, n=n)
-    shaded = []
-
-    def field(p, nrm, floor):
-        shaded.append(p.copy())
-        return np.where((p[:, 0] > 4.5)[:, None], 3.0, 1.0) * np.ones(3)
-
-    ok = np.ones(n * n, bool)
-    args = (bvh.arrays, np.zeros((n * n, 3)), point, normals, ok, ok, np.array([0]), np.array([n]), 2, 0.1)
+    n, point, field, shaded, args = _step_field(tmp_path)
     one = sparse_bounced(field, *args, agree=0.2)
     shaded.clear()
     known = (np.full(n * n, -1, np.int32), [])
