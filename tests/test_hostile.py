@@ -364,6 +364,30 @@ def small_bake(tmp_path_factory):
     return out.read_bytes()
 
 
+def test_the_checksum_is_found_in_the_json_whatever_the_binary_chunk_holds(tmp_path):
+    """The binary chunk may hold the placeholder's 64 ASCII zeros (a float
+    0x30303030, PNG bytes) or the digest itself: the writer and the reader
+    use the JSON's fileSha256 key alone (a staircase bake once died on an
+    assertion here)."""
+    import hashlib
+    from baker.scene.gltf_write import GltfBuilder, file_checksum
+    b = GltfBuilder()
+    b._view(b"0" * 64 + b"\x00" * 8 + b"0" * 64)
+    path = b.save(tmp_path / "z.glb", extras={}, checksum_key="voxgi")
+    data = path.read_bytes()
+    doc, blob = split_glb(data)
+    stated = doc["extras"]["voxgi"]["fileSha256"]
+    assert blob.count(b"0" * 64) == 2 and file_checksum(data, stated) == stated
+    # the digest copied into the binary chunk as well: still found at the key, and still the whole file's hash
+    twice = glb_bytes(doc, blob + stated.encode())
+    at = twice.find(b'"fileSha256": "') + len(b'"fileSha256": "')   # json.dumps puts a space after the colon
+    assert file_checksum(twice, stated) == hashlib.sha256(twice[:at] + b"0" * 64 + twice[at + 64:]).hexdigest()
+    assert file_checksum(twice, stated) != stated   # the file changed: the stated digest is now wrong
+    # the key twice in the JSON: no checksum
+    doc["extras"]["other"] = {"fileSha256": stated}
+    assert file_checksum(glb_bytes(doc, blob), stated) is None
+
+
 def test_a_one_byte_json_edit_is_refused(small_bake, tmp_path):
     from baker.bake import read_bake
     data = small_bake.replace(b'"exrScale":1.0', b'"exrScale":9.0', 1)

@@ -6,6 +6,8 @@ material; cameras and KHR_lights_punctual lights are nodes.
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pygltflib as g
 
@@ -217,9 +219,10 @@ class GltfBuilder:
         self.doc.set_binary_blob(bytes(self.blob))
         data = b"".join(self.doc.save_to_bytes())
         if checksum_key:
-            digest = hashlib.sha256(data).hexdigest().encode()
-            assert data.count(CHECKSUM_PLACEHOLDER.encode()) == 1
-            data = data.replace(CHECKSUM_PLACEHOLDER.encode(), digest)
+            at = _digest_at(data)
+            if at is None or data[at:at + 64] != CHECKSUM_PLACEHOLDER.encode():
+                raise RuntimeError("the bake's JSON names fileSha256 more than once")  # our own writer's bug
+            data = data[:at] + hashlib.sha256(data).hexdigest().encode() + data[at + 64:]
 
         def write(tmp):
             with open(tmp, "wb") as f:
@@ -231,14 +234,31 @@ class GltfBuilder:
 CHECKSUM_PLACEHOLDER = "0" * 64
 
 
+_DIGEST_KEY = re.compile(rb'"fileSha256"[ \t\r\n]*:[ \t\r\n]*"([0-9a-f]{64})"')
+
+
+def _digest_at(data: bytes):
+    """Offset of the 64 digits of the one `"fileSha256": "..."` key in a
+    .glb's JSON chunk (None: not a .glb, or no such key, or more than one).
+    Only the JSON chunk is searched: the binary chunk (floats, PNG bytes)
+    may hold any 64 bytes, the placeholder's or the digest's among them,
+    and a quote inside a JSON string is escaped, so the key with its quotes
+    can only be a key."""
+    if len(data) < 20 or data[:4] != b"glTF" or data[16:20] != b"JSON":
+        return None
+    end = min(len(data), 20 + int.from_bytes(data[12:16], "little"))
+    found = list(_DIGEST_KEY.finditer(data, 20, end))
+    return found[0].start(1) if len(found) == 1 else None
+
+
 def file_checksum(data: bytes, stated: str):
     """The SHA-256 of a .glb written by `save`, with the digest it states
-    (`stated`, 64 hex digits, found exactly once in the file) as zeros;
-    None if the stated digest is malformed or not found exactly once."""
+    (`stated`, 64 hex digits, at the JSON's one fileSha256 key) as zeros;
+    None if the stated digest is malformed or not at that key."""
     import hashlib
-    import re
     if not isinstance(stated, str) or not re.fullmatch(r"[0-9a-f]{64}", stated):
         return None
-    if data.count(stated.encode()) != 1:
+    at = _digest_at(data)
+    if at is None or data[at:at + 64] != stated.encode():
         return None
-    return hashlib.sha256(data.replace(stated.encode(), CHECKSUM_PLACEHOLDER.encode())).hexdigest()
+    return hashlib.sha256(data[:at] + CHECKSUM_PLACEHOLDER.encode() + data[at + 64:]).hexdigest()
