@@ -69,7 +69,7 @@ def write_stats(args, stats):
 
 
 SOLVER_FLAGS = ("resolution", "cell_size", "surface_cells", "photons_per_voxel", "photon_smoothing", "radius",
-                "photons", "seed", "threads", "schedule", "tolerance", "max_bounces")
+                "gather_rays", "photons", "seed", "threads", "schedule", "tolerance", "max_bounces")
 
 
 def _solver_overrides(args) -> dict:

@@ -165,13 +165,19 @@ def grid_args(g):
 
 
 def solver_args(p):
+    from .config import MAX_GATHER
     g = p.add_argument_group("voxel solver")
     preset_arg(g)
     g.add_argument("--surface-cells", type=integer(1, 10 ** 8),
                    help="cells the scene's surfaces should cover, about the voxel count; the cell size follows "
                         f"the surface area (preset: {per_preset(lambda p: p.solver.surface_cells)})")
     grid_args(g)
-    g.add_argument("--radius", type=integer(1, 64), help="direction radius r of the first propagated bounce "
+    g.add_argument("--gather-rays", type=integer(0, MAX_GATHER), metavar="K",
+                   help="the bounces after the photons: gathered by K rays per voxel at the first, halving bounce "
+                        "by bounce down to 64; 0: propagated along digital lines with --radius "
+                        f"(preset: {per_preset(lambda p: p.solver.gather_rays)})")
+    g.add_argument("--radius", type=integer(1, 64), help="direction radius r of the first propagated bounce, "
+                                                         "with --gather-rays 0 "
                                                          f"(preset: {per_preset(lambda p: p.solver.radius)})")
     g.add_argument("--schedule", choices=("halving", "constant"), help="directions per bounce (default: halving)")
     g.add_argument("--photons", type=integer(1, 10 ** 10),

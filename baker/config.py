@@ -10,6 +10,9 @@ from dataclasses import dataclass, field
 from .errors import ConfigError
 
 
+MAX_GATHER = 65_536   # gather rays per point at most (the solver's and the texels')
+
+
 @dataclass(frozen=True)
 class SolverConfig:
     """Knobs of the voxel solver (docs/design.md sections 2-5).
@@ -33,6 +36,10 @@ class SolverConfig:
     photon_smoothing: a voxel's photon estimate is pooled with its
         neighbours on the same surface that agree with it within this many
         standard deviations of the photon noise (0: off).
+    gather_rays: the bounces after the photons are gathered by this many
+        rays per voxel at the first of them, halving bounce by bounce down
+        to 64 (solve/gather.py), instead of propagated along digital lines
+        (0: propagated, with radius and schedule).
     tolerance: stop when the power of the newly arrived radiosity falls
         below tolerance times that of the first bounce; the bounces left
         are added as the geometric series of the last two (a bounce cap
@@ -52,6 +59,7 @@ class SolverConfig:
     photons: int = 0
     photons_per_voxel: float = 64.0
     photon_smoothing: float = 0.0
+    gather_rays: int = 0
     tolerance: float = 1e-3
     max_bounces: int = 64
     seed: int = 0
@@ -73,6 +81,8 @@ class SolverConfig:
             raise ConfigError(f"photon smoothing must be >= 0 standard deviations (got {self.photon_smoothing})")
         if not self.photons_per_voxel >= 0:
             raise ConfigError(f"photons per voxel must be >= 0 (got {self.photons_per_voxel})")
+        if not 0 <= self.gather_rays <= MAX_GATHER:
+            raise ConfigError(f"the solver's gather rays must lie in [0, {MAX_GATHER}] (got {self.gather_rays})")
         if self.threads < 0:
             raise ConfigError(f"threads must be >= 0 (0: all cores), not {self.threads}")
         if self.memory_budget_mb <= 0:
@@ -121,7 +131,6 @@ UV_MODES = ("per-triangle", "xatlas")
 TEXEL_SOURCES = ("voxels", "lightcuts")
 MAX_TEXEL_SAMPLES = 8
 MAX_INDIRECT_STRIDE = 16
-MAX_GATHER = 65_536
 
 
 @dataclass(frozen=True)
@@ -149,7 +158,7 @@ class BakeConfig:
     anti-aliasing point (1: all together at every point, one cut of the
     lightcuts' cap); texel_gather: with a stride above 1, the smooth
     lattice's bounced light is gathered from the voxel solution by this
-    many rays per point (lightmap/gather.py) instead of a cut over the
+    many rays per point (solve/gather.py) instead of a cut over the
     voxels' VPLs (0: the cut)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"

@@ -40,29 +40,30 @@ class Preset:
     texel_cap: int | None = None
 
 
-# Tuned by bench/tradeoff.py and bench/bake_error.py (bench/results/): the preview shows the voxels themselves,
-# where smoothing the photons pays; default and high shade texels by lightcuts, where it made the Cornell box's
-# lightmaps brighter and worse. Default's texels and frames gather the bounced light by shadow rays to the voxels'
-# VPLs, so the voxel solution's directions only set those VPLs' power: at radius 6 (866 directions in the first
-# bounce, not 1538) the propagation takes about half the time, the real scenes' bakes read the same against the
-# path tracer (radius 4 too), and the Cornell box's lightcuts frame 2.5% (radius 8: 2.35%, 5: 2.85%, 4: 3.7%). The default bake's texels take a tighter epsilon than its frames because a
-# lightmap is looked at for longer; its adaptive shading and coarser contrast keep its time near the preview's.
+# Tuned by bench/tradeoff.py, bench/bake_error.py and bench/real_scenes.py (bench/results/): the preview shows the
+# voxels themselves, where smoothing the photons pays; default and high shade texels by lightcuts, where it made
+# the Cornell box's lightmaps brighter and worse. Every preset gathers the bounces after the photons by rays at the
+# voxels: on the real scenes the digital lines lost light at thin and curved things (balusters, a chandelier),
+# 4-11% of the view's mean at default and up to 26% at preview, where the gather came within 0.3-4% of the path
+# tracer and took less time; on the Cornell box it takes about 1-3 s more (the lines stay as --gather-rays 0, with
+# the radius). The default bake's texels take a tighter epsilon than its frames because a lightmap is looked at
+# for longer; its adaptive shading and coarser contrast keep its time near the preview's.
 PRESETS = {p.name: p for p in (
     Preset("preview", "coarse voxels, texels from the voxel solution: seconds",
            SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0, tolerance=1e-2,
-                        max_bounces=16),
+                        max_bounces=16, gather_rays=64),
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
            texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
            SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-2,
-                        max_bounces=64),
+                        max_bounces=64, gather_rays=256),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400),
-    Preset("high", "finer voxels, more photons, directions and VPLs; every texel shaded",
+    Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
-                        tolerance=1e-3, max_bounces=128),
+                        tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
            texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024),
@@ -133,9 +134,10 @@ def help_table() -> str:
     for p in PRESETS.values():
         s, lc = p.solver, p.lightcuts
         rows.append(f"  {p.name:<8} {p.about}\n"
-                    f"           surface cells {s.surface_cells:,}, radius {s.radius}, photons/voxel "
-                    f"{s.photons_per_voxel:g}, smoothing {s.photon_smoothing:g}, tolerance {s.tolerance:g}, "
-                    f"bounces <= {s.max_bounces}\n"
+                    f"           surface cells {s.surface_cells:,}, "
+                    + (f"bounces gathered by {s.gather_rays} rays per voxel" if s.gather_rays else f"radius {s.radius}")
+                    + f", photons/voxel {s.photons_per_voxel:g}, smoothing {s.photon_smoothing:g}, tolerance "
+                    f"{s.tolerance:g}, bounces <= {s.max_bounces}\n"
                     f"           direct VPLs {lc.direct_vpls:,}, sky VPLs {lc.sky_vpls:,}, epsilon "
                     f"{lc.epsilon:g}, cut <= {lc.cap:,}\n"
                     f"           a bake's texels from {p.texels}"

@@ -153,7 +153,7 @@ def test_bake_writes_a_readable_file_and_a_summary(tmp_path):
     code, stdout, err = cli("bake", "cornell_box", "-o", out, "--preset", "preview", "--resolution", "12",
                             "--photons", "20000", "--stats", stats)
     assert code == 0, err
-    for word in ("voxels", "directions per bounce", "photons", "texels", "points shaded", "maps stored", "pages",
+    for word in ("voxels", "gather rays per bounce", "photons", "texels", "points shaded", "maps stored", "pages",
                  "dedup ratio", "seconds", "peak MiB", "wrote"):
         assert word in stdout
     bake = read_bake(out)

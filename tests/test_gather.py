@@ -1,5 +1,5 @@
 """The final gather of the bounced light into the voxel solution
-(baker/lightmap/gather.py), against the form factor of a lit ceiling."""
+(baker/solve/gather.py), against the form factor of a lit ceiling."""
 import math
 from dataclasses import replace
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from baker.config import SolverConfig
-from baker.lightmap.gather import gather_bounced, gather_directions
+from baker.solve.gather import gather_bounced, gather_directions
 from baker.scene import prepare
 from baker.solve import solve
 from scenes.generate import GltfBuilder, box, quad

@@ -32,7 +32,9 @@ class BakeResult:
         sol, c, ts = self.solution, self.counts, self.texel_stats
         info, vox = sol.info, sol.voxels
         rows = [("voxels", f"{len(vox):,} (cell {vox.cell_size:.4g})"),
-                ("directions per bounce", " ".join(str(d) for d in info.get("directions_per_bounce", [])) or "-"),
+                (("gather rays per bounce", " ".join(str(d) for d in info["gather_rays_per_bounce"]))
+                 if info.get("gather_rays_per_bounce") else
+                 ("directions per bounce", " ".join(str(d) for d in info.get("directions_per_bounce", [])) or "-")),
                 ("photons", f"{info.get('photons', 0):,} ({info.get('photons_landed', 0):,} landed)"),
                 ("bounces", f"{sol.bounces} ({sol.stop_reason})")]
         if ts is not None:

@@ -228,7 +228,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
     texel_interpolate as `interpolate`)."""
     from ..lights import irradiance, split_lights
-    from .gather import gather_bounced
+    from ..solve.gather import gather_bounced
     from ..startup import checkpoint
     bvh, surfaces = prepared.bvh, prepared.surfaces
     epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed

@@ -62,7 +62,7 @@ def split_lights(lights: Lights, seed=0, tree=True) -> tuple[Lights, Lights | No
     lights.sky is None (the sky's directions are VPLs of its tree), the
     sky stays with the sharp part. tree=False: the smooth part's voxel
     VPLs get no tree (its cuts then see the sky alone: a bake that gathers
-    the bounced light from the voxels, lightmap/gather.py)."""
+    the bounced light from the voxels, solve/gather.py)."""
     v = lights.vpls
     if lights.sky is None:
         direct = v.select(~v.indirect)

@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from ..kernels.rng import rand01
+from ..voxels.tolerances import SKIN_COS
 from ..scene.model import LightKind
 from ..scene.surfaces import (SKY_HEMISPHERE, SKY_NONE, emission_at, sample_emitter, sky_solid_angle,
                               triangle_normal)
@@ -102,11 +103,11 @@ def direct_vpls(surfaces, n, seed=0):
     return VPLs(np.zeros(n, np.int8), pos, nor, power, np.full(n, total_area / n), np.zeros(n, bool))
 
 
+PLANAR_SKIN = 1e-3   # a planar voxel's VPL under a surface by less than this x its side is under its own plane
 SKIN = 0.5        # a voxel's VPL under its surface by less than this x the voxel's side is moved onto it,
-SKIN_COS = 0.5    # when the surface, met from behind, faces within 60 degrees of the VPL's normal
 
 
-def on_surface(bvh, surfaces, position, normal, side):
+def on_surface(bvh, surfaces, position, normal, side, voxels=None, index=None):
     """Voxel VPL positions (n, 3) put on their surface. A voxel's
     photon-weighted centroid on a convex curved surface (a column, a
     sphere, a scan) lies under it by the sagitta of the voxel's patch, so
@@ -117,7 +118,11 @@ def on_surface(bvh, surfaces, position, normal, side):
     winding normal within 60 degrees of the VPL's; two-sided: either way)
     has found that skin: the VPL moves onto it, a hair past. A surface met
     from the front (a box standing over a floor's voxel) leaves it where it
-    is."""
+    is. Given the voxels (and each position's voxel, `index`), a planar
+    voxel (its centroid lies on its plane) moves only past its own plane,
+    met within rounding (PLANAR_SKIN x side): a ceiling's voxel just above
+    a lamp meets the lamp's back, and must not carry its light into the
+    room."""
     if bvh is None or len(position) == 0:
         return position
     t, tri, _, _ = bvh.closest(position, normal, tmax=SKIN * side)
@@ -130,7 +135,10 @@ def on_surface(bvh, surfaces, position, normal, side):
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     cos = np.einsum("ij,ij->i", fn, normal[hit])
     two = a.double_sided[a.tri_material[tri[hit]]]
-    skin = hit[(cos > SKIN_COS) | (two & (np.abs(cos) > SKIN_COS))]
+    ok = (cos > SKIN_COS) | (two & (np.abs(cos) > SKIN_COS))
+    if voxels is not None:
+        ok &= ~voxels.planar[np.asarray(index, np.int64)[hit]] | (t[hit] < PLANAR_SKIN * side[hit])
+    skin = hit[ok]
     out = position.copy()
     out[skin] += normal[skin] * (t[skin] + 1e-4 * side[skin])[:, None]
     return out
@@ -148,7 +156,7 @@ def indirect_vpls(solution, bvh=None, surfaces=None):
     normal = vox.normal[keep].astype(np.float64)
     area = vox.area[keep].astype(np.float64)
     position = on_surface(bvh, surfaces, solution.photon_centroid[keep].astype(np.float64), normal,
-                          np.sqrt(area))
+                          np.sqrt(area), vox, np.nonzero(keep)[0])
     return VPLs(np.zeros(n, np.int8), position, normal, power[keep], area, np.ones(n, bool))
 
 

@@ -5,8 +5,9 @@
     stop when power(current) < tolerance * power(B_1), or at the bounce cap.
 
 Only the newly arrived light is propagated, with about half the directions
-of the previous bounce; emitters' own E is never propagated (the photons
-carried it). B_ind = rho H is the light that bounced at least once; the
+of the previous bounce (or, with config.gather_rays, gathered at each
+voxel by about half the rays of the previous bounce: solve/gather.py);
+emitters' own E is never propagated (the photons carried it). B_ind = rho H is the light that bounced at least once; the
 outgoing radiosity is B = E + rho H.
 """
 from __future__ import annotations
@@ -22,6 +23,7 @@ from ..stats import Stats, release_freed_memory
 from ..voxels import Voxels, resolution_for, voxelize
 from .smoothing import pool_parents, smooth_photons
 from .directions import direction_set
+from .gather import gather_voxels, rays_for_bounce
 from .photons import shoot_photons
 from .propagate import LineSweeper
 
@@ -57,8 +59,10 @@ class Solution:
         i = self.info
         return (f"voxels {len(self.voxels)} (cell {self.voxels.cell_size:.4g})  photons {i.get('photons', 0)} "
                 f"({i.get('photons_landed', 0)} landed)  bounces {self.bounces} (stopped: {self.stop_reason})  "
-                f"directions/bounce {i.get('directions_per_bounce', [])}  "
-                f"discrete rays {i.get('discrete_rays', 0):.4g}")
+                + (f"gather rays/bounce {i['gather_rays_per_bounce']}  gather rays {i.get('gather_rays', 0):.4g}"
+                   if i.get("gather_rays_per_bounce") else
+                   f"directions/bounce {i.get('directions_per_bounce', [])}  "
+                   f"discrete rays {i.get('discrete_rays', 0):.4g}"))
 
 
 MIN_POOL_AREA = 0.25  # in cells^2: smaller voxels pool their photons with a neighbour
@@ -123,8 +127,8 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     del h1
     p1 = float((current * area).sum())
     bounce_power = [p1]
-    radii_used, directions = [], []
-    rays = 0
+    radii_used, directions, per_bounce = [], [], []
+    rays = gather_rays = 0
     if p1 > 0:
         stop = f"bounce cap ({config.max_bounces})"
     elif landed and float(dep.sum()) > 0:
@@ -133,16 +137,23 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
         stop = "no light reached a surface"
     if p1 > 0 and config.max_bounces > 1:
         radii = config.radii()
+        gathered = config.gather_rays > 0
         with stats.stage("propagation"), bar(len(radii), "bounces", "bounce", progress) as bbar:
-            sweeper = LineSweeper(vox)
+            sweeper = None if gathered else LineSweeper(vox)
             release_freed_memory()
             cache = {}
             for k, r in enumerate(radii, start=2):
-                dirs = cache.get(r) or cache.setdefault(r, direction_set(r))
-                hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k))
-                rays += n * dirs.n_directions
-                radii_used.append(r)
-                directions.append(dirs.n_directions)
+                if gathered:
+                    g = rays_for_bounce(config.gather_rays, k)
+                    hk = gather_voxels(prepared, vox, current, g)
+                    gather_rays += n * g
+                    per_bounce.append(g)
+                else:
+                    dirs = cache.get(r) or cache.setdefault(r, direction_set(r))
+                    hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k))
+                    rays += n * dirs.n_directions
+                    radii_used.append(r)
+                    directions.append(dirs.n_directions)
                 total += hk
                 np.multiply(vox.albedo, hk, out=current)  # in place: no second (n, 3) array
                 pk = float((current * area).sum())
@@ -166,7 +177,8 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     radiosity = vox.emission + vox.albedo * total
     info = {"photons": int(n_photons), "photons_landed": landed, "emitted_power": emitted.tolist(),
             "discrete_rays": int(rays), "voxels": n, "cell_size": vox.cell_size,
-            "directions_per_bounce": directions, "bounces": len(bounce_power),
+            "directions_per_bounce": directions, "gather_rays": int(gather_rays),
+            "gather_rays_per_bounce": per_bounce, "bounces": len(bounce_power),
             "stop_reason": stop, "voxel_bytes": vox.nbytes}
     if keep_bounces:
         info["history"] = history

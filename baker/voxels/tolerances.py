@@ -25,3 +25,6 @@ FLAT_PLANE = 0.02        # cells around it (normals within 45 degrees, SMOOTH_CO
 #                          box's face; not a tessellated sphere or a scan (the propagation defers a grazing ray's
 #                          gather on a flat voxel to where the ray meets its plane, visibility.py)
 GRID_SNAP = 1e-6         # cells: a triangle corner this close to a cell boundary lies on it (voxels.clip.to_grid)
+SKIN_COS = 0.5           # a surface met from behind just over a curved voxel's centroid, its normal within 60 degrees
+#                          of the voxel's, is the voxel's own surface (its skin): the centroid lies under it by the
+#                          sagitta of the voxel's patch (lights.vpl.on_surface, solve.gather)

@@ -1,0 +1,211 @@
+"""Final gathers into the voxel solution (docs/design.md sections 5 and
+8): K rays over a point's hemisphere, cosine-distributed, each reading the
+outgoing radiosity B of the voxel it hits (on the side it hits). Then
+
+    H(p) = integral of L cos dw  ~=  (pi / K) sum_k B(hit_k) / pi = mean_k B(hit_k)
+
+Two users. The solver's bounces after the photons (`gather_voxels`): the
+irradiance each voxel receives from the light that bounced last, gathered
+at the voxel's centroid, the cache method's "propagate only what newly
+arrived" by rays instead of digital lines (gather_rays > 0). And the
+lightmap's bounced light (`gather_bounced`): B_ind, the solution's
+radiosity less emission (the emitters' own light is the sharp part's), at
+the texels' smooth lattice.
+
+The directions are one fixed stratified set (a Fibonacci spiral on the
+unit disk lifted onto the hemisphere, Malley's method), turned into each
+point's frame: points of one plane take the same world directions, so
+the estimate's error varies smoothly along a surface instead of as noise,
+and it is the same for any thread count.
+
+A ray that hits the back of a one-sided surface, or a voxel facing away
+from it, reads nothing (a two-sided sheet's voxel emits on its normal's
+side, as its VPL does); through thin glass it reads the pane's voxel and
+goes on, tinted.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import PASS_GLASS, STACK_SIZE
+from ..kernels.traverse import any_hit, closest_hit, hit_normal
+from ..voxels.lookup import voxel_of_hit
+from ..voxels.tolerances import SHEET_BACK_COS, SKIN_COS
+
+GLASS_LAYERS = 8   # panes a gather ray crosses before it stops (a window's two faces, a display case)
+GATHER_FLOOR = 64   # rays per voxel below which a later bounce's gather does not halve
+VOXEL_LIFT = 0.25   # cells: a voxel's gather rays start this far off its centroid, along its normal
+VOXEL_GAP = 0.3     # cells: two voxels facing each other closer than this pass no light by the solver's gather. Such
+#                     a gap (a lamp 1 cm under a ceiling) is thinner than a voxel: the ceiling's voxel over the lamp's
+#                     edge is one value for the gap and the room beside it, so light bounced to and fro in the gap
+#                     (2.3x the lamp's own there) would reach the room through it; the lines pass none either
+
+
+
+def gather_directions(k: int) -> np.ndarray:
+    """k cosine-distributed unit directions about +z (k, 3)."""
+    i = np.arange(k) + 0.5
+    r = np.sqrt(i / k)
+    phi = i * np.pi * (3.0 - np.sqrt(5.0))
+    x, y = r * np.cos(phi), r * np.sin(phi)
+    return np.ascontiguousarray(np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))], 1))
+
+
+@njit(cache=True, inline="always")
+def _frame(nx, ny, nz):
+    if abs(nx) < 0.9:
+        ax, ay, az = 1.0, 0.0, 0.0
+    else:
+        ax, ay, az = 0.0, 1.0, 0.0
+    tx, ty, tz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / tl, ty / tl, tz / tl
+    return tx, ty, tz, ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+
+
+@njit(cache=True)
+def _sees(bvh, stack, vnormal, vcentroid, vi, px, py, pz, dx, dy, dz, h):
+    """Whether the hit point p (reached along d) and voxel vi's centroid
+    see each other. Asked only of a voxel whose pieces another surface cut:
+    one plane splits a cell, and in a corner, where two walls meet, the
+    part on p's side of the one can still reach round the other, into a
+    room its light never enters."""
+    e = 0.01 * h
+    lift = VOXEL_LIFT * h   # off the voxel's own surface, which a curved voxel's centroid lies under
+    sx, sy, sz = px - e * dx, py - e * dy, pz - e * dz
+    tx = vcentroid[vi, 0] + lift * vnormal[vi, 0] - sx
+    ty = vcentroid[vi, 1] + lift * vnormal[vi, 1] - sy
+    tz = vcentroid[vi, 2] + lift * vnormal[vi, 2] - sz
+    dist = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if dist <= e:
+        return True
+    return not any_hit(bvh, stack, sx, sy, sz, tx / dist, ty / dist, tz / dist, 0.0, dist)
+
+
+@njit(cache=True)
+def _voxel_origin(bvh, stack, double, mat_of, planar, cx, cy, cz, nx, ny, nz, lift):
+    """Where a voxel's gather rays start: `lift` along its normal from its
+    centroid, or halfway to a surface met first (a ceiling's voxel 1 cm
+    above a lamp must not start under the lamp, in the room). A curved
+    voxel's centroid lies under its surface by the sagitta of its patch:
+    unless the voxel is planar, a surface met from behind (its normal
+    within 60 degrees of the voxel's, as lights.vpl.on_surface) is its
+    skin, and the lift starts there."""
+    base = 0.0
+    tmin = 1e-3 * lift   # not the voxel's own plane, met at rounding distance
+    for _ in range(4):
+        t, j, u, v = closest_hit(bvh, stack, cx, cy, cz, nx, ny, nz, base + tmin, base + lift)
+        if j < 0:
+            break
+        hx, hy, hz = hit_normal(bvh, j)
+        c = hx * nx + hy * ny + hz * nz
+        if not planar and (c > SKIN_COS or (double[mat_of[bvh.tri_index[j]]] and -c > SKIN_COS)):
+            base = t + 1e-4 * lift
+            continue
+        lift = 0.5 * (t - base)
+        break
+    return cx + (base + lift) * nx, cy + (base + lift) * ny, cz + (base + lift) * nz
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def gather_kernel(bvh, double, mat_of, b_ind, vnormal, vcentroid, vcut, vplanar, pieces, points, normals, own, offset,
+                  gap, local, out):
+    """out[i] (3,) the gathered irradiance at points[i] (normal
+    normals[i], rays from offset along it) over the directions `local`.
+    vcentroid, vcut, vplanar: the voxels' centroids, cut signs
+    (Voxels.cut_sign) and planarity; own[i] >= 0: points[i] is that
+    voxel's centroid, and its rays start at _voxel_origin (offset at
+    most); -1: at offset. A voxel facing the point's normal (within 25
+    degrees) and hit closer than `gap` is not read (see VOXEL_GAP)."""
+    n = len(points)
+    k_n = len(local)
+    for i in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        tx, ty, tz, bx, by, bz = _frame(nx, ny, nz)
+        if own[i] >= 0:
+            ox0, oy0, oz0 = _voxel_origin(bvh, stack, double, mat_of, vplanar[own[i]], points[i, 0], points[i, 1],
+                                          points[i, 2], nx, ny, nz, offset)
+        else:
+            ox0, oy0, oz0 = points[i, 0] + offset * nx, points[i, 1] + offset * ny, points[i, 2] + offset * nz
+        a0 = a1 = a2 = 0.0
+        for k in range(k_n):
+            lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
+            dx = lx * tx + ly * bx + lz * nx
+            dy = lx * ty + ly * by + lz * ny
+            dz = lx * tz + ly * bz + lz * nz
+            ox, oy, oz = ox0, oy0, oz0
+            w0 = w1 = w2 = 1.0
+            for _layer in range(GLASS_LAYERS):
+                t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+                if j < 0:   # the sky's light is the sky's cut's (lights.sky_light)
+                    break
+                hx, hy, hz = hit_normal(bvh, j)
+                tri = bvh.tri_index[j]
+                back = hx * dx + hy * dy + hz * dz > 0.0
+                px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+                if not back or double[mat_of[tri]]:
+                    vi = voxel_of_hit(tri, back, px, py, pz, pieces)
+                    if vi >= 0 and t < gap and \
+                            vnormal[vi, 0] * nx + vnormal[vi, 1] * ny + vnormal[vi, 2] * nz < SHEET_BACK_COS:
+                        break
+                    if vi >= 0 and vnormal[vi, 0] * dx + vnormal[vi, 1] * dy + vnormal[vi, 2] * dz < 0.0 \
+                            and (vcut[vi] == 0 or _sees(bvh, stack, vnormal, vcentroid, vi, px, py, pz, dx, dy, dz,
+                                                        pieces.h)):
+                        a0 += w0 * b_ind[vi, 0]
+                        a1 += w1 * b_ind[vi, 1]
+                        a2 += w2 * b_ind[vi, 2]
+                if bvh.tri_pass[j] != PASS_GLASS:
+                    break
+                g = bvh.glass_tint[bvh.tri_mat[j]]
+                w0, w1, w2 = w0 * g[0], w1 * g[1], w2 * g[2]
+                if w0 <= 0.0 and w1 <= 0.0 and w2 <= 0.0:
+                    break
+                step = 1e-6 * max(1.0, t)   # past the pane, not onto it again
+                ox, oy, oz = px + step * dx, py + step * dy, pz + step * dz
+        out[i, 0] = a0 / k_n
+        out[i, 1] = a1 / k_n
+        out[i, 2] = a2 / k_n
+
+
+def rays_for_bounce(rays: int, k: int) -> int:
+    """Gather rays per voxel at bounce k >= 2 (the photons' is 1): `rays`
+    at the first gathered bounce, halved at each one after (the newly
+    arrived light gets smoother bounce by bounce, as the cache method's
+    direction sets halve), down to GATHER_FLOOR (or `rays`, if fewer)."""
+    return max(min(rays, GATHER_FLOOR), rays >> min(k - 2, 30))
+
+
+def gather_voxels(prepared, vox, radiosity, rays) -> np.ndarray:
+    """(n, 3) float64: the irradiance at each voxel (its centroid, lifted
+    VOXEL_LIFT cells along its normal) gathered by `rays` rays from the
+    voxels' radiosity (n, 3)."""
+    a = prepared.surfaces.arrays
+    out = np.zeros((len(vox), 3))
+    if len(vox):
+        normal = np.ascontiguousarray(vox.normal, np.float64)
+        centroid = np.ascontiguousarray(vox.centroid, np.float64)
+        gather_kernel(prepared.bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(radiosity, np.float64),
+                      normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid, normal,
+                      np.arange(len(vox), dtype=np.int64), VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size,
+                      gather_directions(int(rays)), out)
+    return out
+
+
+def gather_bounced(prepared, solution, points, normals, offset, rays) -> np.ndarray:
+    """(N, 3) float64: the bounced light at points (unit normals, the side
+    that receives) gathered from the voxel solution by `rays` rays each."""
+    a = prepared.surfaces.arrays
+    v = solution.voxels
+    b_ind = np.ascontiguousarray(np.maximum(solution.radiosity - v.emission, 0.0), np.float64)
+    out = np.zeros((len(points), 3))
+    if len(points):
+        gather_kernel(prepared.bvh.arrays, a.double_sided, a.tri_material, b_ind,
+                      np.ascontiguousarray(v.normal, np.float64), np.ascontiguousarray(v.centroid, np.float64),
+                      v.cut_sign, v.planar, v.lookup(),
+                      np.ascontiguousarray(points, np.float64), np.ascontiguousarray(normals, np.float64),
+                      np.full(len(points), -1, np.int64), float(offset), 0.0, gather_directions(int(rays)), out)
+    return out
