@@ -44,8 +44,8 @@ class Preset:
 # voxels themselves, where smoothing the photons pays; default and high shade texels by lightcuts, where it made
 # the Cornell box's lightmaps brighter and worse. Every preset gathers the bounces after the photons by rays at the
 # voxels: on the real scenes the digital lines lost light at thin and curved things (balusters, a chandelier),
-# 4-11% of the view's mean at default and up to 26% at preview, where the gather came within 0.3-4% of the path
-# tracer and took less time; on the Cornell box it takes about 1-3 s more (the lines stay as --gather-rays 0, with
+# 4-11% of the view's mean at default and up to 26% at preview, where the gather came within 0.6-5% of the path
+# tracer in about the same time; on the Cornell box it takes about twice as long (the lines stay as --gather-rays 0, with
 # the radius). The default bake's texels take a tighter epsilon than its frames because a lightmap is looked at
 # for longer; its adaptive shading and coarser contrast keep its time near the preview's.
 PRESETS = {p.name: p for p in (
