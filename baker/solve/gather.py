@@ -44,7 +44,6 @@ VOXEL_GAP = 0.3     # cells: two voxels facing each other closer than this pass 
 #                     (2.3x the lamp's own there) would reach the room through it; the lines pass none either
 
 
-
 def gather_directions(k: int) -> np.ndarray:
     """k cosine-distributed unit directions about +z (k, 3)."""
     i = np.arange(k) + 0.5
