@@ -111,7 +111,7 @@ def _render_settings(args):
                                                               direct_vpls=args.direct_vpls, seed=args.seed))
     return RenderSettings(args.method, args.width, args.height, args.spp or (SPP_CAP if adaptive else 64), args.seed,
                           args.time_limit, args.noise, solver, lc, args.vpls_per_frame, args.frames,
-                          args.ir_tolerance)
+                          args.ir_tolerance, args.path_bounces)
 
 
 def cmd_render(args):

@@ -231,6 +231,9 @@ def _render_parser(sub):
                         "not see a lamp directly")
     p.add_argument("--time-limit", type=number(0, 1e7, lo_open=True), default=None, metavar="SECONDS",
                    help="pathtrace: stop after about this many seconds (of path tracing)")
+    p.add_argument("--path-bounces", type=integer(0, 999), default=None, metavar="K",
+                   help="pathtrace: count the light of paths with at most K reflections (1: direct light only, "
+                        "0: only the lamps and sky seen; default: all), to split an image's error by bounce")
     run_args(p)
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")

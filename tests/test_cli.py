@@ -55,6 +55,8 @@ def test_bad_settings_are_refused_before_work(tmp_path):
         (["--width", "0"], "argument --width: must lie in 1..16,384"),
         (["--look-from", "1,2"], "X,Y,Z"),
         (["--method", "nope"], "invalid choice"),
+        (["--path-bounces", "-1"], "argument --path-bounces: must lie in 0..999"),
+        (["--method", "voxels", "--path-bounces", "1"], "--path-bounces applies to --method pathtrace"),
     ]
     for extra, message in cases:
         refused(*cli("render", CORNELL, "-o", out, *extra)[::2], message)

@@ -3,7 +3,7 @@ import pytest
 
 from baker.scene import bvh as bvh_mod
 from baker.scene import surfaces
-from baker.render.pathtrace import radiance_batch, render_pathtrace
+from baker.render.pathtrace import pathtrace, radiance_batch, render_pathtrace
 from baker.render import camera_array
 from scenes.generate import emission_test, furnace_box, GltfBuilder, quad
 from tests.threads import same_for_any_thread_count
@@ -35,6 +35,24 @@ def test_furnace_radiance_is_le_over_one_minus_rho(make_scene, rho):
     # 4 standard errors: a false failure once in ~16000 runs
     assert abs(px.mean() - expected) < 4 * stderr + 1e-6
     assert np.isfinite(img).all() and img.min() >= 0
+
+
+@pytest.mark.parametrize("bounces", [0, 1, 3])
+def test_furnace_radiance_after_k_bounces(make_scene, bounces):
+    """Capped at k reflections, the furnace's radiance is the partial sum
+    L_e (1 + rho + ... + rho^k): the emitters seen, then each bounce's share
+    counted once (next-event light at the vertex before the cap, the
+    emitter hit at the cap with its MIS weight)."""
+    rho = 0.5
+    scene = make_scene(furnace_box(albedo=rho, emission=1.0), f"furnace_{rho}")
+    tree, surf = prepare(scene)
+    img = pathtrace(tree, surf, camera_array(camera_for(scene), 24, 24), 24, 24, 64, seed=3, bounces=bounces).image
+    expected = (1.0 / np.pi) * (1.0 - rho ** (bounces + 1)) / (1.0 - rho)
+    px = img[..., 0].astype(np.float64).ravel()
+    stderr = px.std(ddof=1) / np.sqrt(px.size)
+    assert abs(px.mean() - expected) < 4 * stderr + 1e-6, (px.mean(), expected)
+    # one bounce fewer is measurably less: the cap is not a no-op
+    assert px.mean() < (1.0 / np.pi) / (1.0 - rho) - 0.5 * (1.0 / np.pi) * rho ** (bounces + 1) / (1.0 - rho)
 
 
 def test_point_under_rectangular_light_matches_form_factor(make_scene):

@@ -45,7 +45,9 @@ class RenderSettings:
     per pixel (or a stop at `noise` relative RMSE or after `time_limit`
     seconds), the seed, the solver and lightcuts settings of the methods
     that need them (None: the default preset's), and instant radiosity's
-    VPLs per frame, frames and stopping change."""
+    VPLs per frame, frames and stopping change; path_bounces caps the
+    path tracer's reflections (1: direct light only), to split an image's
+    error by bounce."""
     method: str = "pathtrace"
     width: int = 512
     height: int = 512
@@ -58,6 +60,7 @@ class RenderSettings:
     vpls_per_frame: int = 16
     frames: int = 256
     ir_tolerance: float = 0.0
+    path_bounces: int | None = None   # pathtrace: reflections counted at most (None: all)
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -70,6 +73,10 @@ class RenderSettings:
             raise VoxgiError(f"--time-limit must be a positive number of seconds (got {self.time_limit})")
         if self.noise is not None and not self.noise > 0:
             raise VoxgiError(f"--noise must be a positive fraction, e.g. 0.02 for 2% (got {self.noise})")
+        if self.path_bounces is not None and self.method != "pathtrace":
+            raise VoxgiError("--path-bounces applies to --method pathtrace")
+        if self.path_bounces is not None and not 0 <= self.path_bounces <= 999:
+            raise VoxgiError(f"--path-bounces must lie in 0..999 (got {self.path_bounces})")
         if self.adaptive and self.method != "pathtrace":
             raise VoxgiError("--time-limit and --noise apply to --method pathtrace")
         if self.vpls_per_frame < 1 or self.frames < 1:
@@ -151,14 +158,14 @@ def _lights(job):
 
 def _pathtrace(job) -> Frame:
     from ..progress import bar
-    from .pathtrace import pathtrace
+    from .pathtrace import MAX_BOUNCES, pathtrace
     s = job.settings
     total = None if s.adaptive else s.width * s.height * s.spp
     what = f"{s.spp} spp" if not s.adaptive else "until " + " or ".join(
         ([f"{s.noise:.2%} noise"] if s.noise else []) + ([f"{s.time_limit:g} s"] if s.time_limit else []))
     with job.stats.stage("pathtrace"), bar(total, f"path tracing {what}", "sample", job.progress) as b:
         pt = pathtrace(job.bvh, job.surfaces, job.cam, s.width, s.height, s.spp, s.seed, s.time_limit, s.noise,
-                       b.update)
+                       b.update, MAX_BOUNCES if s.path_bounces is None else s.path_bounces)
     counts = dict(spp=pt.spp, camera_paths=s.width * s.height * pt.spp, noise_estimate=pt.noise,
                   stopped_by=pt.stopped, samples_per_second=s.width * s.height * pt.spp / pt.seconds)
     by = {"spp": "--spp", "noise": "--noise", "time": "--time-limit"}[pt.stopped]

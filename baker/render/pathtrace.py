@@ -39,7 +39,7 @@ from ..kernels.traverse import closest_hit, transmittance
 from ..scene.surfaces import albedo_at, emission_at, emitter_point, punctual_irradiance, sky_radiance
 from .camera import primary_ray
 
-MAX_DEPTH = 1000
+MAX_BOUNCES = 999   # reflections a path makes at most (Russian roulette ends it long before)
 RR_DEPTH = 5
 
 
@@ -53,7 +53,7 @@ _sky_radiance, _cosine_hemisphere = inlined(sky_radiance), inlined(cosine_hemisp
 
 
 @njit(cache=True, inline="always")
-def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz, l1, l2):
+def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz, l1, l2, bounces):
     """Radiance (r, g, b) arriving at o from direction -d, sample `index` of
     `pixel`'s sequences; and whether the ray's first hit is an emitter.
     (l1, l2): the numbers of the first vertex's emitter point (drawn with
@@ -65,7 +65,10 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     site, so one inlined copy). Thin glass (transmission t): the path goes
     straight through with probability t, tinted by the base colour factor
     (the tint shadow rays take, traverse.transmittance), else the surface
-    is diffuse with its albedo."""
+    is diffuse with its albedo. `bounces`: the reflections light makes
+    before it is counted, at most (1: direct light only; 0: the emitters
+    seen); the last vertex takes no next-event light, its emitter hit its
+    MIS share."""
     tri_index = bvh.tri_index
     mat_of, emission, double, normal = surf.tri_material, surf.emission, surf.double_sided, surf.tri_normal
     transmission = surf.transmission
@@ -77,7 +80,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
     saw_emitter = False
     seg = 0.0  # the path's length since its last diffuse vertex (through glass): the emitter's MIS weight
     roulette = mix64(np.uint64(seed) ^ mix64(np.uint64(pixel) + np.uint64(STREAM_ROULETTE)))
-    for depth in range(MAX_DEPTH):
+    for depth in range(bounces + 1):
         t, j, u, v = _closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
         if j < 0:
             # escaped: the sky, if any (found by direction sampling only: no MIS weight needed)
@@ -121,7 +124,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
         pz = oz + t * dz + eps * nz
         # direct light: query 0 the area emitters (next-event estimation,
         # MIS-weighted), then every punctual light (deterministic)
-        for light in range(n_lights + 1):
+        for light in range(n_lights + 1 if depth < bounces else 0):
             if light == 0:
                 if n_emitters == 0:
                     continue
@@ -176,7 +179,7 @@ def trace_path(bvh, surf, stack, eps, seed, pixel, index, ox, oy, oz, dx, dy, dz
 
 
 @njit(cache=True, error_model="numpy")
-def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height, origins, dirs):
+def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height, origins, dirs, bounces):
     """Sums over samples s0..s1-1 of `pixel`'s paths: (r, g, b, n), n the
     samples whose first hit is an emitter. Each sample's camera ray goes
     through pixel (x, y) of `cam`, placed in it by the sample's first pair;
@@ -193,7 +196,7 @@ def trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, 
         else:
             ox, oy, oz = origins[pixel, 0], origins[pixel, 1], origins[pixel, 2]
             dx, dy, dz = dirs[pixel, 0], dirs[pixel, 1], dirs[pixel, 2]
-        r, g, b, hit = trace_path(bvh, surf, stack, eps, seed, pixel, s, ox, oy, oz, dx, dy, dz, l1, l2)
+        r, g, b, hit = trace_path(bvh, surf, stack, eps, seed, pixel, s, ox, oy, oz, dx, dy, dz, l1, l2, bounces)
         sr += r
         sg += g
         sb += b
@@ -213,7 +216,7 @@ def _coprime_stride(n):
 
 
 @njit(cache=True, parallel=True)
-def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp, origins, dirs):
+def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row1, acc, lamp, origins, dirs, bounces):
     """Samples s0..s1-1 of every pixel of rows row0..row1-1, summed into
     `acc` (float64); lamp counts the samples whose camera ray meets an
     emitter first. With `origins` and `dirs` not empty, (n, 3) each, pixel
@@ -229,7 +232,7 @@ def _accumulate_rows(bvh, surf, cam, eps, seed, s0, s1, width, height, row0, row
         x = k % width
         pixel = y * width + x
         sr, sg, sb, hits = trace_samples(bvh, surf, stack, eps, seed, pixel, s0, s1, cam, x, y, width, height,
-                                         origins, dirs)
+                                         origins, dirs, bounces)
         lamp[y, x] += hits
         acc[y, x, 0] += sr
         acc[y, x, 1] += sg
@@ -272,7 +275,7 @@ def noise_estimate(first, second, lamp):
 
 
 def pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, time_limit=None, noise=None,
-              progress=None):
+              progress=None, bounces=MAX_BOUNCES):
     """Path traces until `spp` samples per pixel, or the estimated relative
     noise falls to `noise`, or `time_limit` seconds pass, whichever comes
     first. Samples go in passes: sample 0, then 1, then 2-3, 4-7, ... (the
@@ -280,7 +283,9 @@ def pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, time_
     pass that completes a power of two the noise is estimated from its two
     halves (noise_estimate). A time limit shortens the pass that would
     overrun it; the estimate then scales the last one by the square root
-    of the sample counts. progress(n) gets camera samples done."""
+    of the sample counts. progress(n) gets camera samples done. bounces:
+    the reflections counted at most (trace_path; 1: direct light only), to
+    split an image's error by bounce."""
     t0 = time.perf_counter()
     eps = 1e-7 * surfaces.scale
     total = np.zeros((height, width, 3))
@@ -302,7 +307,8 @@ def pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0, time_
         ts = time.perf_counter()
         for r0 in range(0, height, band):
             r1 = min(height, r0 + band)
-            _accumulate_rows(*args, done, done + step, width, height, r0, r1, last, lamp, NO_RAYS, NO_RAYS)
+            _accumulate_rows(*args, done, done + step, width, height, r0, r1, last, lamp, NO_RAYS, NO_RAYS,
+                             int(bounces))
             if progress is not None:
                 progress((r1 - r0) * width * step)
         rate = (time.perf_counter() - ts) / (width * height * step)
@@ -326,11 +332,12 @@ def render_pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed=0
     return pathtrace(scene_bvh, surfaces, camera_arr, width, height, spp, seed, progress=rows).image
 
 
-def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs):
+def radiance_batch(bvh, surf, eps, seed, spp, origins, dirs, bounces=MAX_BOUNCES):
     """Mean radiance over spp paths for each (origin, direction) ray: (n, 3)
-    float64. Ray i takes the sequences of pixel i."""
+    float64. Ray i takes the sequences of pixel i; bounces as pathtrace's
+    (0: only the emitters the rays meet)."""
     n = origins.shape[0]
     acc = np.zeros((1, n, 3))
     _accumulate_rows(bvh, surf, np.zeros((4, 3)), eps, seed, 0, spp, n, 1, 0, 1, acc, np.zeros((1, n), np.int32),
-                     np.ascontiguousarray(origins, np.float64), np.ascontiguousarray(dirs, np.float64))
+                     np.ascontiguousarray(origins, np.float64), np.ascontiguousarray(dirs, np.float64), int(bounces))
     return acc[0] / spp
