@@ -369,3 +369,20 @@ def test_single_colour_maps_are_found_as_a_loop_over_maps_finds_them():
         assert constant[c] == want, c
         assert np.allclose(mean[c], v.mean(axis=0), rtol=1e-12)
     assert 0 < constant.sum() < 300
+
+
+def test_a_map_capped_at_a_page_says_its_texels_are_coarser():
+    """A triangle 10 units across at 0.01 a texel would need a map of 1000
+    texels; it stops at a page (512) with coarser texels, and the bake says
+    so in one sentence. A triangle that fits, or an xatlas layout, says
+    nothing."""
+    from baker.lightmap.charts import MAX_SIZE, per_triangle_charts
+    from baker.lightmap.values import capped_note
+    big = np.array([[[0, 0, 0], [10, 0, 0], [0, 0, 10]]], float)
+    small = np.array([[[0, 0, 0], [1, 0, 0], [0, 0, 1]]], float)
+    charts = per_triangle_charts(np.concatenate([big, small]), np.zeros(2, bool), 0.01)
+    assert charts.size.max() == MAX_SIZE and charts.texel.max() > 0.019
+    note = capped_note(charts, 0.01)
+    assert note.startswith("1 of 2 triangle maps reached a page's size (512x512): their texels are up to 0.0")
+    assert capped_note(per_triangle_charts(small, np.zeros(1, bool), 0.01), 0.01) is None
+    assert capped_note(object(), 0.01) is None

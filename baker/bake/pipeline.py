@@ -3,11 +3,13 @@ texels -> atlas -> Bake (docs/design.md section 8)."""
 from __future__ import annotations
 
 import platform
+import warnings
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from ..config import BakeConfig, threads
+from ..errors import VoxgiWarning
 from ..presets import bake_config
 from ..stats import Stats
 
@@ -113,6 +115,7 @@ def _meta(scene, config, solution, counts) -> dict:
 
 def _bake(scene, config, stats, progress, bvh, surfaces):
     from ..lightmap import atlas_for, layout_for, texel_size_for
+    from ..lightmap.values import capped_note
     from ..lightmap.values import check_texel_budget
     from ..lights import build_lights, ordered_vpls
     from ..scene import camera_for, prepare
@@ -130,6 +133,9 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     checkpoint()
     with stats.stage("charts"):   # (one texel per voxel cell: the voxelization's own budget bounds it)
         charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
+    note = capped_note(charts, texel_size_for(solution, config.texel_density))
+    if note:
+        warnings.warn(note, VoxgiWarning, stacklevel=2)
     checkpoint()
     texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress)
     with stats.stage("atlas"):

@@ -81,6 +81,22 @@ def texel_size_for(solution, texel_density=None) -> float:
     return float(solution.voxels.cell_size)
 
 
+def capped_note(layout, texel_size) -> str | None:
+    """A per-triangle layout whose largest maps stopped at a page's size
+    (charts.MAX_SIZE) holds coarser texels there than `texel_size` asks:
+    the sentence that says how many and how coarse; None when every map
+    keeps the size (and for xatlas, whose charts split across pages)."""
+    from .charts import MAX_SIZE
+    if not isinstance(layout, Charts) or not len(layout.texel):
+        return None
+    coarse = layout.texel > float(texel_size) * 1.001
+    if not coarse.any():
+        return None
+    return (f"{int(coarse.sum()):,} of {len(layout.texel):,} triangle maps reached a page's size "
+            f"({MAX_SIZE}x{MAX_SIZE}): their texels are up to {float(layout.texel.max()):.3g} scene units, coarser "
+            f"than the {float(texel_size):.3g} asked for (--uv xatlas splits large surfaces and keeps the density)")
+
+
 def charts_for(scene, texel_size) -> Charts:
     return per_triangle_charts(scene.triangle_corners(), scene.double_sided[scene.material_ids], texel_size)
 
