@@ -115,8 +115,7 @@ def _meta(scene, config, solution, counts) -> dict:
 
 def _bake(scene, config, stats, progress, bvh, surfaces):
     from ..lightmap import atlas_for, layout_for, texel_size_for
-    from ..lightmap.values import capped_note
-    from ..lightmap.values import check_texel_budget
+    from ..lightmap.values import capped_note, check_texel_budget
     from ..lights import build_lights, ordered_vpls
     from ..scene import camera_for, prepare
     from ..solve import solve
@@ -132,8 +131,9 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
     with stats.stage("charts"):   # (one texel per voxel cell: the voxelization's own budget bounds it)
-        charts = layout_for(scene, texel_size_for(solution, config.texel_density), config.uv)
-    note = capped_note(charts, texel_size_for(solution, config.texel_density))
+        texel_size = texel_size_for(solution, config.texel_density)
+        charts = layout_for(scene, texel_size, config.uv)
+    note = capped_note(charts, texel_size)
     if note:
         warnings.warn(note, VoxgiWarning, stacklevel=2)
     checkpoint()
