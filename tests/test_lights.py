@@ -616,3 +616,44 @@ def test_adaptive_sky_casts_a_ray_per_cell_where_the_sky_agrees(tmp_path, hemisp
     assert np.all(rays <= rays_all + n_cells) and rays[3] <= 0.4 * rays_all[3]
     assert H_all[3, 0] < 0.99 * H_all[0, 0]   # the pole shades the point beside it
     assert abs(H[3, 0] - H_all[3, 0]) <= np.pi * L / n_cells
+
+
+@pytest.mark.parametrize("hemisphere", [True, False])
+def test_adaptive_sky_traces_every_direction_where_the_sky_shows_through_a_window(tmp_path, hemisphere):
+    """A closed room lit by the sky through one small window (0.4 x 0.4 m
+    in a 4 m room: from most of the floor smaller than a cell of the
+    adaptive sky, so it slips between the cells' representatives). Points
+    that see the sky through so few cells trace every direction: the
+    room's floor and back wall get exactly what a ray along every
+    direction gives (the shortcut lost the window's light on the living
+    room's floor), and some of them are lit."""
+    from baker.lights import Lights, sky_cells
+    from baker.lights.vpl import sky_vpls
+    from baker.scene import Sky, load_scene
+    from scenes.generate import GltfBuilder, box, merge, quad
+    b = GltfBuilder()
+    grey = b.material("grey", (0.5,) * 3)
+    b.mesh("room", *box((0, 0, 0), (4, 3, 4), inward=True, skip=("+x",)), grey)
+    y0, y1, z0, z1 = 1.2, 1.6, 1.8, 2.2   # the window's hole in the wall x = 4
+    wall = merge(quad((4, 0, 0), (4, y0, 0), (4, y0, 4), (4, 0, 4), facing=(-1, 0, 0)),
+                 quad((4, y1, 0), (4, 3, 0), (4, 3, 4), (4, y1, 4), facing=(-1, 0, 0)),
+                 quad((4, y0, 0), (4, y1, 0), (4, y1, z0), (4, y0, z0), facing=(-1, 0, 0)),
+                 quad((4, y0, z1), (4, y1, z1), (4, y1, 4), (4, y0, 4), facing=(-1, 0, 0)))
+    b.mesh("window wall", *wall, grey)
+    b.save(tmp_path / "room.glb")
+    scene = load_scene(tmp_path / "room.glb", sky=Sky(np.full(3, 2.0), hemisphere))
+    bvh, surf = build_scene_bvh(scene), pack(scene)
+    v = sky_vpls(surf, 1024, seed=3)
+    lights = Lights(v, None, np.ascontiguousarray(v.normal))
+    g = np.linspace(0.25, 3.75, 8)
+    floor = np.array([[x, 0.0, z] for x in g for z in g])
+    back = np.array([[0.0, y, z] for y in np.linspace(0.25, 2.75, 6) for z in g])
+    pts = np.concatenate([floor, back])
+    nrm = np.concatenate([np.tile([0.0, 1.0, 0.0], (len(floor), 1)), np.tile([1.0, 0.0, 0.0], (len(back), 1))])
+    H, _, rays = irradiance(lights, bvh, surf, pts, nrm)
+    H_all, _, rays_all = irradiance(lights, bvh, surf, pts, nrm, adaptive_sky=False)
+    lit = H_all[:, 0] > 0
+    assert lit.sum() >= 10
+    np.testing.assert_allclose(H, H_all, rtol=1e-12, atol=0)
+    n_cells = len(sky_cells(v.normal, surf.arrays.sky_up, hemisphere).start) - 1
+    assert np.all(rays <= rays_all + n_cells)
