@@ -1,6 +1,7 @@
 """The bake end to end: scene -> lightmaps -> bake file -> what a viewer
 shows (docs/design.md section 8)."""
 import json
+from dataclasses import replace
 import os
 import struct
 import subprocess
@@ -772,3 +773,31 @@ def test_every_bake_opens_in_our_reader_and_viewer(tmp_path, name):
     r = subprocess.run([sys.executable, "-m", "viewer", "snapshot", str(out), "-o", str(tmp_path / "s.png"),
                         "--width", "16", "--height", "16"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+
+
+def test_a_strip_poking_through_the_ceiling_does_not_bring_the_sky_in(make_scene):
+    """A closed room (double-sided, so no back faces tell inside from
+    outside) under a sky, with a moulding strip along the top of one wall:
+    4 m long, 1 cm tall, its top edge 0.1 mm above the ceiling, so near its
+    sharp end the strip lies wholly above the ceiling, outside (the living
+    room's cornice). Nothing lights the inside: every texel of the walls'
+    inner faces and of both faces of the strip is exactly 0 (the strip's
+    texels near its end used to sample points over the roof, in the open
+    sky, and showed as bright dots along the ceiling); the outer faces are
+    lit."""
+    from baker.scene import Sky
+    from scenes.generate import GltfBuilder, box, quad
+    b = GltfBuilder()
+    wall = b.material("wall", (0.7,) * 3, double_sided=True)
+    b.mesh("room", *box((0, 0, 0), (4, 3, 4), inward=True), wall)
+    z, top = 3.83, 3.0001
+    b.mesh("strip", np.array([[0.0, top, z], [4.0, top, z], [4.0, 2.99, z]]), np.array([[0, 1, 2]]), wall)
+    scene = make_scene(b, "bake_strip_through_ceiling")
+    scene = replace(scene, sky=Sky(np.full(3, 5.0)))
+    result = bake_scene(scene, bake_config("default", resolution=32, photons=100_000))
+    tx = result.texels
+    is_strip = tx.texel_tri == len(scene.triangles) - 1
+    inner = (tx.texel_tri >= 0) & (is_strip | ~tx.texel_back)
+    assert (tx.covered & is_strip).sum() > 20
+    assert tx.values[inner & tx.filled].max() == 0.0
+    assert tx.values[~inner & tx.filled].max() > 0.0

@@ -408,7 +408,16 @@ def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size
     across a shared edge then holds the light at its own centre, as its
     neighbour across the edge does, and bilinear filtering shows no seam
     along the edge. Where the surface ends (a box's edge, a wall meeting
-    the floor) the point stays clamped and inset (texel_points)."""
+    the floor) the point stays clamped and inset (texel_points), unless
+    another surface separates it from its triangle's centroid: a segment
+    lifted off the side, from the point to the centroid, meets something.
+    Such a point lies past a surface that cuts the triangle near its edge
+    (a moulding's strip poking a tenth of a millimetre through the ceiling
+    it meets, a floor running on under a wall): it sees what is beyond
+    (the sky over the roof), and bilinear filtering would show that on the
+    visible side. Its texel is left uncovered (not shaded, filled from its
+    neighbours); an edge texel cut off by an object standing on its
+    triangle takes its neighbours' light, a texel away, likewise."""
     for c in prange(chart_tri.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
         s = size[c]
@@ -423,6 +432,20 @@ def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size
                     continue                                  # inside its triangle: already at its centre
                 if continues_at(bvh, stack, corners, chart_tri[c], chart_back[c], px, py, pz, lift):
                     point[k, 0], point[k, 1], point[k, 2] = px, py, pz
+                    continue
+                t = chart_tri[c]
+                dx = (corners[t, 0, 0] + corners[t, 1, 0] + corners[t, 2, 0]) / 3.0 - point[k, 0]
+                dy = (corners[t, 0, 1] + corners[t, 1, 1] + corners[t, 2, 1]) / 3.0 - point[k, 1]
+                dz = (corners[t, 0, 2] + corners[t, 1, 2] + corners[t, 2, 2]) / 3.0 - point[k, 2]
+                reach = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if reach <= 0.0:
+                    continue
+                dx, dy, dz = dx / reach, dy / reach, dz / reach
+                nx, ny, nz = side_normal(corners, t, chart_back[c])
+                _, h, _, _ = closest_hit(bvh, stack, point[k, 0] + lift * nx, point[k, 1] + lift * ny,
+                                         point[k, 2] + lift * nz, dx, dy, dz, 0.0, reach)
+                if h >= 0:
+                    covered[k] = False
 
 
 @njit(cache=True, parallel=True)
