@@ -47,6 +47,7 @@ SAME_FACING = 0.9     # adaptive shading interpolates only between texels whose 
 PROBES = 16           # rays per texel for the inside-geometry test
 PROBE_BACK = 0.6      # fraction of probes on back faces that marks a texel inside geometry (a floor texel at the
 #                       foot of a one-sided wall seen from behind sees its back in half the hemisphere: not inside)
+PROBE_NEAR = 0.25     # ... of which this fraction of all probes on one-sided triangles or near two-sided ones
 
 
 @njit(cache=True, inline="always")
@@ -154,11 +155,19 @@ CHUNK = 1024  # texels per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, covered, offset, reach, seed):
-    """(N,) bool: covered texels whose point is hidden inside geometry (at
-    least PROBE_BACK of PROBES cosine-distributed rays, started `offset`
-    off the surface, first hit the back of a one-sided triangle within
-    `reach`). Stratified directions, rotated per texel by a hash.
+def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, covered, offset, reach, near, seed):
+    """(N,) bool: covered texels whose point is hidden inside geometry: of
+    PROBES cosine-distributed rays, started `offset` off the surface, at
+    least PROBE_BACK first hit a triangle from behind (against its winding)
+    within `reach`, and at least PROBE_NEAR of them a one-sided triangle,
+    or a two-sided one within `near`. Real scenes are often two-sided
+    throughout (every one of the big scenes is), their closed objects
+    still wound outward: a wall's texels inside a step that runs into it
+    see the step's inner faces from behind, close by, and their darkness
+    would bleed around the step's end; a sheet's back seen from afar (a
+    ceiling wound upward) is no closed object's inside. Where everything
+    is one-sided this is the plain test (PROBE_BACK of the rays on back
+    faces). Stratified directions, rotated per texel by a hash.
     texel_tri (N,) int32 the triangle a texel samples (-1: none),
     texel_back (N,) bool its back side."""
     total = point.shape[0]
@@ -178,7 +187,7 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
             ox = point[k, 0] + offset * nx
             oy = point[k, 1] + offset * ny
             oz = point[k, 2] + offset * nz
-            backs = 0
+            backs = close = 0
             for p in range(side * side):
                 u1 = ((p // side) + r1) / side
                 u1 = u1 - 1.0 if u1 >= 1.0 else u1
@@ -193,9 +202,11 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
                 tt, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, reach)
                 if j >= 0:
                     hx, hy, hz = hit_normal(bvh, j)
-                    if hx * dx + hy * dy + hz * dz > 0.0 and not double[mat_of[bvh.tri_index[j]]]:
+                    if hx * dx + hy * dy + hz * dz > 0.0:
                         backs += 1
-            out[k] = backs >= PROBE_BACK * side * side
+                        if not double[mat_of[bvh.tri_index[j]]] or tt <= near:
+                            close += 1
+            out[k] = backs >= PROBE_BACK * side * side and close >= PROBE_NEAR * side * side
     return out
 
 

@@ -26,6 +26,7 @@ from .xatlas_charts import xatlas_layout
 LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far off their surface for rays
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
 BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
+NEAR_BACK = 2.0     # cells: a two-sided triangle seen from behind this near a texel's point counts as inside geometry
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
 CLUSTER_CELL = 1.0  # texels: the grid of those clusters
 CLUSTER_BINS = 16   # triangles under half a texel share a shading point when their normals share a cube-map cell
@@ -178,7 +179,7 @@ def preview_texels(prepared, solution, layout, seed=0) -> TexelSet:
     small, cpts, _ = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
-                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+                             tback, point, covered & ~by_corners, lift, np.inf, NEAR_BACK * h, seed)
 
     def at(tri, back, pts, ok):
         return reconstruct(bvh.arrays, corners, tri, back, pts, ok, np.ascontiguousarray(solution.irradiance),
@@ -264,7 +265,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
     inside = inside_geometry(bvh.arrays, surfaces.arrays.double_sided, surfaces.arrays.tri_material, corners, ttri,
-                             tback, point, covered & ~by_corners, lift, np.inf, seed)
+                             tback, point, covered & ~by_corners, lift, np.inf, NEAR_BACK * h, seed)
     normals = side_normals(corners, ttri, tback)
     found = covered & (ttri >= 0)
     values = np.zeros((len(point), 3))
