@@ -194,7 +194,7 @@ def cmd_audit(args):
         scene = _load(args)
         print(geometry_report(scene).summary())
         bvh, surfaces = build_scene_bvh(scene), pack(scene)
-        vox = voxelize(scene, resolution_for(scene, config), config.cell_size, config.memory_budget_mb, surfaces)
+        vox = voxelize(scene, resolution_for(scene, config), config.cell_size, config.memory_budget_mb, surfaces, bvh)
         report = audit(scene, vox, bvh, surfaces, radius=args.radius, families=args.families, samples=args.samples,
                        seed=args.seed)
     print(f"{len(vox)} voxels, cell {vox.cell_size:.4g}")

@@ -1,6 +1,7 @@
 """Sampling helpers: orthonormal frames, cosine hemisphere, triangles, CDFs."""
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -75,3 +76,14 @@ def sample_cdf(cdf, u):
         else:
             hi = mid
     return lo
+
+
+def spiral_hemisphere(k: int) -> np.ndarray:
+    """k cosine-distributed unit directions about +z (k, 3): a Fibonacci
+    spiral lifted onto the hemisphere, fixed, so what they measure is
+    deterministic."""
+    i = np.arange(k) + 0.5
+    r = np.sqrt(i / k)
+    phi = i * np.pi * (3.0 - np.sqrt(5.0))
+    x, y = r * np.cos(phi), r * np.sin(phi)
+    return np.ascontiguousarray(np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))], 1))

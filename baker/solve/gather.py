@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import PASS_GLASS, STACK_SIZE
+from ..kernels.sampling import spiral_hemisphere
 from ..kernels.traverse import any_hit, closest_hit, hit_normal
 from ..voxels.lookup import voxel_of_hit
 from ..voxels.tolerances import SHEET_BACK_COS, SKIN_COS
@@ -46,11 +47,7 @@ VOXEL_GAP = 0.3     # cells: two voxels facing each other closer than this pass 
 
 def gather_directions(k: int) -> np.ndarray:
     """k cosine-distributed unit directions about +z (k, 3)."""
-    i = np.arange(k) + 0.5
-    r = np.sqrt(i / k)
-    phi = i * np.pi * (3.0 - np.sqrt(5.0))
-    x, y = r * np.cos(phi), r * np.sin(phi)
-    return np.ascontiguousarray(np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))], 1))
+    return spiral_hemisphere(k)
 
 
 @njit(cache=True, inline="always")

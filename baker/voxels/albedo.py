@@ -23,6 +23,31 @@ def mask_arrays(scene) -> MaskArrays:
     return MaskArrays(*ray_passes(scene, np.arange(len(scene.triangles)))[:8])
 
 
+@njit(cache=True, inline="always")
+def r2_point(si, cell, origin, h, v0, nrm, k, d, a11, a12, a21, a22, det, q):
+    """The si-th point of a piece, into q (3,): the R2 low-discrepancy
+    sequence (Roberts 2018; a regular grid aliases with regular textures)
+    over the face of the piece's `cell` across the triangle's dominant
+    axis k, projected on the triangle's plane (normal nrm, n.x = d, corner
+    v0; a.. and det its edges' 2x2 projection along k); its barycentrics
+    (b1, b2) and whether it lies inside both the triangle and the cell."""
+    ia, ja = (k + 1) % 3, (k + 2) % 3
+    ra = 0.5 + si * 0.7548776662466927
+    rb = 0.5 + si * 0.5698402909980532
+    ra -= math.floor(ra)
+    rb -= math.floor(rb)
+    q[ia] = origin[ia] + (cell[ia] + ra) * h
+    q[ja] = origin[ja] + (cell[ja] + rb) * h
+    q[k] = (d - nrm[ia] * q[ia] - nrm[ja] * q[ja]) / nrm[k]
+    ck = (q[k] - origin[k]) / h - cell[k]
+    if ck < 0.0 or ck > 1.0:
+        return 0.0, 0.0, False
+    ri, rj = q[ia] - v0[ia], q[ja] - v0[ja]
+    b1 = (ri * a22 - rj * a12) / det
+    b2 = (a11 * rj - a21 * ri) / det
+    return b1, b2, b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0
+
+
 @njit(cache=True, parallel=True)
 def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samples):
     """Albedo (n, 3) of each piece averaged over the piece (docs/design.md
@@ -56,22 +81,10 @@ def textured_albedo(surf, masks, corners, piece_tri, piece_cell, origin, h, samp
         cnt = 0
         hold = 0
         masked = masks.tri_pass[t] == PASS_MASK
+        q = np.empty(3)
         for si in range(samples * samples):
-            ra = 0.5 + si * 0.7548776662466927
-            rb = 0.5 + si * 0.5698402909980532
-            ra -= math.floor(ra)
-            rb -= math.floor(rb)
-            q = np.empty(3)
-            q[ia] = origin[ia] + (piece_cell[p, ia] + ra) * h
-            q[ja] = origin[ja] + (piece_cell[p, ja] + rb) * h
-            q[k] = (d - nrm[ia] * q[ia] - nrm[ja] * q[ja]) / nrm[k]
-            ck = (q[k] - origin[k]) / h - piece_cell[p, k]
-            if ck < 0.0 or ck > 1.0:
-                continue
-            ri, rj = q[ia] - v0[ia], q[ja] - v0[ja]
-            b1 = (ri * a22 - rj * a12) / det
-            b2 = (a11 * rj - a21 * ri) / det
-            if b1 < 0.0 or b2 < 0.0 or b1 + b2 > 1.0:
+            b1, b2, ok = r2_point(si, piece_cell[p], origin, h, v0, nrm, k, d, a11, a12, a21, a22, det, q)
+            if not ok:
                 continue
             cnt += 1
             if masked and cut_out(masks, t, b1, b2):

@@ -28,3 +28,10 @@ GRID_SNAP = 1e-6         # cells: a triangle corner this close to a cell boundar
 SKIN_COS = 0.5           # a surface met from behind just over a curved voxel's centroid, its normal within 60 degrees
 #                          of the voxel's, is the voxel's own surface (its skin): the centroid lies under it by the
 #                          sagitta of the voxel's patch (lights.vpl.on_surface, solve.gather)
+BURIED_SAMPLES = 3       # a piece's buried share is measured at BURIED_SAMPLES^2 of its points (voxels.buried)
+BURIED_RAYS = 16         # rays per point
+BURIED_BACK = 0.6        # a point is buried when this share of its rays meet a triangle from behind ...
+BURIED_NEAR = 0.25       # ... and this share a one-sided one, or a two-sided one within BURIED_REACH cells
+BURIED_REACH = 2.0       # (the texels' inside test: lightmap/texels.inside_geometry)
+BURIED_FLOOR = 0.02      # the weight of a wholly buried piece (never 0: a voxel keeps an area)
+BURIED_KEEP = 0.25       # a voxel keeps at least this share of its area (its irradiance grows at most 4x)

@@ -29,6 +29,9 @@ area / h^2, never the bounding volume. The supercover of every triangle
    (`group_pieces`);
 6b. clutter: a cell with more than CLUTTER_VOXELS voxels merges its small
    ones per facing (`merge_clutter`): cost bounded per cell;
+6c. buried parts: each piece counts with the share of its points that do
+   not lie inside another object (`buried_weights`, buried.py): the parts
+   pushed into other parts take no share of the light;
 7. sums: area, centroid, normal, albedo, emission per voxel (`voxel_sums`);
 8. lookup: (triangle side, cell) -> voxel, for photons and camera rays
    (`piece_lookup`).
@@ -46,6 +49,7 @@ from .albedo import mask_arrays, textured_albedo
 from .cells import (cell_runs, find_straddlers, join_voxels, merge_sheets, separating_planes, side_signatures,
                     split_pieces)
 from .clip import clip_pieces, count_candidates
+from .buried import piece_weights, voxel_relative
 from ..scene.topology import triangle_adjacency
 from .patches import smooth_patches
 from .tolerances import (CLUTTER_AREA, CLUTTER_PIECES, CLUTTER_VOXELS, FLAT_COS, MIN_PIECE_AREA, MIN_SEPARATION, MIN_SPLIT_PART, PARALLEL_COS, SHEET_GAP,
@@ -71,7 +75,10 @@ class Voxels:
     origin + h * [(i, j, k), (i+1, j+1, k+1)]; dims (3,) int64.
     cell (n, 3) int32; facing (n,) int8 (0..5 = +x,-x,+y,-y,+z,-z);
     key (n,) int64 = (i * dims[1] + j) * dims[2] + k;
-    area (n,) float64 (scene units^2); normal (n, 3) unit, area-weighted;
+    area (n,) float64 (scene units^2: the pieces' area, each weighted by
+    its share not buried in another object, buried.py, and a masked piece
+    by its coverage);
+    normal (n, 3) unit, area-weighted;
     centroid (n, 3) area-weighted, a point on the surface (scene units);
     albedo (n, 3); emission (n, 3) emitted radiosity E = pi L_e (W/m^2);
     material (n,) int32 of the largest piece.
@@ -83,6 +90,7 @@ class Voxels:
     facing: np.ndarray
     key: np.ndarray
     area: np.ndarray
+    surface_area: np.ndarray  # (n,) float64 the pieces' plain area, the parts buried in other objects included
     normal: np.ndarray
     centroid: np.ndarray
     albedo: np.ndarray
@@ -470,7 +478,8 @@ def _labels(*columns):
     return label
 
 
-def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corners, grid: Grid, surfaces):
+def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corners, grid: Grid, surfaces,
+               weight=None):
     """Step 7: per-voxel area, centroid, normal, albedo (texture-aware),
     emission, material of the largest piece, cell and cut plane, summed in
     sorted piece order (deterministic). Returns a dict of Voxels fields."""
@@ -481,7 +490,8 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
     def per_voxel(values):  # (m, c) piece values in piece order -> (n, c) sums
         return np.stack([np.bincount(vox_of, weights=values[order, c], minlength=n) for c in range(values.shape[1])],
                         axis=1)
-    area = np.bincount(vox_of, weights=w, minlength=n)
+    plain = np.bincount(vox_of, weights=w, minlength=n)
+    area = plain if weight is None else np.bincount(vox_of, weights=w * weight[order], minlength=n)
     cen = per_voxel(pieces.centroid)
     nrm = per_voxel(pieces.normal * pieces.area[:, None])
     mats = scene.material_ids[tri]
@@ -513,14 +523,14 @@ def voxel_sums(scene, pieces: Pieces, order, vox_of, sides_tri, sides_sign, corn
     cell = pieces.cell[order][starts]
     nl = np.linalg.norm(nrm, axis=1, keepdims=True)
     h = grid.h
-    return dict(cell=cell.astype(np.int32), area=area * h * h,
+    return dict(cell=cell.astype(np.int32), area=area * h * h, surface_area=plain * h * h,
                 normal=np.where(nl > 0, nrm / np.maximum(nl, 1e-300), 0.0),
-                centroid=grid.origin + cen / area[:, None] * h, albedo=alb / area[:, None],
-                emission=em / area[:, None], material=material,
+                centroid=grid.origin + cen / plain[:, None] * h, albedo=alb / plain[:, None],
+                emission=em / plain[:, None], material=material,
                 cut_plane=_relative_plane(pieces.plane[order][starts], cell), cut_sign=_common_sign(pieces.sign[order],
                                                                                                     starts),
                 two_sided=scene.double_sided[material].astype(bool),
-                planar=nl[:, 0] >= FLAT_COS * area)
+                planar=nl[:, 0] >= FLAT_COS * plain)
 
 
 def _common_sign(sign, starts):
@@ -530,6 +540,25 @@ def _common_sign(sign, starts):
     first = np.flatnonzero(starts)
     lo, hi = np.minimum.reduceat(sign, first), np.maximum.reduceat(sign, first)
     return np.where(lo == hi, lo, 0).astype(sign.dtype)
+
+
+def buried_weights(scene, pieces: Pieces, order, vox_of, grid: Grid, corners, sides_tri, bvh=None, surfaces=None):
+    """Step 6c: each piece's share not buried in another object (buried.py),
+    which its area counts with in its voxel's area: a piece pushed inside
+    another part takes no share of the light its voxel receives."""
+    if not len(order):
+        return np.ones(len(pieces.area))
+    if bvh is None:
+        from ..scene import build_scene_bvh
+        bvh = build_scene_bvh(scene)
+    if surfaces is None:
+        from ..scene import pack
+        surfaces = pack(scene)
+    w = piece_weights(bvh, surfaces, corners, sides_tri[pieces.side], pieces.cell, pieces.plane, pieces.sign,
+                      grid.origin + pieces.centroid / pieces.area[:, None] * grid.h, pieces.normal, grid.origin, grid.h)
+    vox_piece = np.empty(len(order), np.int64)
+    vox_piece[order] = vox_of
+    return voxel_relative(w, pieces.area, vox_piece, int(vox_of[-1]) + 1)
 
 
 def piece_lookup(pieces: Pieces, key, order, vox_of, sides_tri, n_triangles):
@@ -558,10 +587,11 @@ def _relative_plane(plane, cell):
 
 
 def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_mb: float = 8192.0,
-             surfaces=None) -> Voxels:
+             surfaces=None, bvh=None) -> Voxels:
     """Scene -> Voxels (the steps of the module docstring). Raises
     BudgetError (with the estimate) before allocating when the estimate
-    exceeds memory_budget_mb."""
+    exceeds memory_budget_mb. bvh: the scene's (built here if not given),
+    for the pieces' buried share."""
     grid = grid_for(scene, resolution, cell_size)
     corners = scene.triangle_corners()
     sides_tri, sides_sign = _sides(scene)
@@ -577,7 +607,9 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     checkpoint()
     two_sided = scene.double_sided[scene.material_ids[sides_tri[pieces.side]]]
     order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs, two_sided)
-    sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces)
+    checkpoint()
+    weight = buried_weights(scene, pieces, order, vox_of, grid, corners, sides_tri, bvh, surfaces)
+    sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces, weight)
     lookup = piece_lookup(pieces, key, order, vox_of, sides_tri, len(scene.triangles))
     starts = np.ones(len(vox_of), bool)
     starts[1:] = vox_of[1:] != vox_of[:-1]

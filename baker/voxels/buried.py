@@ -1,0 +1,147 @@
+"""Which parts of each piece are buried inside another object.
+
+Real scenes are built of parts pushed into each other: a stair's tread
+into its stringer, a baluster into the tread, a board into the floor.
+The parts inside are surface the voxelizer clips like any other, but no
+light reaches them. In a voxel that holds both, the photons' power (and
+every later bounce) would spread over the whole area, and the visible
+part show only its share. Each piece counts in its voxel's area with
+the share of its sample points that are not buried: a point is buried
+when the rays over its hemisphere meet the object around it from behind
+(against the winding of its closed surface), close by where the object
+is two-sided (the test the texels use, lightmap/texels.inside_geometry).
+A crevice between two objects' outer faces is not buried: light that
+reaches it is spread over it.
+
+A voxel keeps at least BURIED_KEEP of its plain area (voxel_relative): no
+voxel's irradiance grows more than 1 / BURIED_KEEP times; one whose pieces
+are all buried keeps all of it.
+"""
+from __future__ import annotations
+
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.sampling import spiral_hemisphere
+from ..kernels.traverse import closest_hit, hit_normal
+from .albedo import r2_point
+from .clip import side_axis
+from .tolerances import BURIED_BACK, BURIED_FLOOR, BURIED_KEEP, BURIED_NEAR, BURIED_RAYS, BURIED_REACH, BURIED_SAMPLES
+
+
+@njit(cache=True, inline="always")
+def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
+    """1.0 where the point p (normal n) lies inside a closed object: of the
+    rays over n's hemisphere (directions `local` about +z), at least
+    BURIED_BACK first meet a triangle from behind (against its winding)
+    and at least BURIED_NEAR a one-sided one, or a two-sided one within
+    `near` (the texels' inside test, lightmap/texels.inside_geometry);
+    else 0.0."""
+    if abs(nx) < 0.9:
+        ax, ay, az = 1.0, 0.0, 0.0
+    else:
+        ax, ay, az = 0.0, 1.0, 0.0
+    tx, ty, tz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+    tl = np.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / tl, ty / tl, tz / tl
+    bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    e = 1e-3 * near   # off the piece's own plane
+    ox, oy, oz = px + e * nx, py + e * ny, pz + e * nz
+    backs = close = 0
+    for k in range(len(local)):
+        lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
+        dx = lx * tx + ly * bx + lz * nx
+        dy = lx * ty + ly * by + lz * ny
+        dz = lx * tz + ly * bz + lz * nz
+        t, j, _, _ = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        if j < 0:
+            continue
+        hx, hy, hz = hit_normal(bvh, j)
+        if hx * dx + hy * dy + hz * dz > 0.0:
+            backs += 1
+            if not double[mat_of[bvh.tri_index[j]]] or t <= near:
+                close += 1
+    n = len(local)
+    return 1.0 if backs >= BURIED_BACK * n and close >= BURIED_NEAR * n else 0.0
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def buried_kernel(bvh, double, mat_of, corners, piece_tri, piece_cell, piece_plane, piece_sign, centroids, normals,
+                  origin, h, samples, local, near, out):
+    """out[i]: piece i's weight, the mean over samples^2 of its points
+    (the R2 points over the cell's face across the triangle's dominant
+    axis, projected on its plane, kept inside the triangle, the cell and,
+    for a piece that another surface's plane cut, on its side of that
+    plane, as albedo.textured_albedo; its centroid if none is) of 1 where
+    the point is not buried (_buried), else 0."""
+    for p in prange(len(piece_tri)):
+        stack = np.empty(STACK_SIZE, np.int32)
+        nx, ny, nz = normals[p, 0], normals[p, 1], normals[p, 2]
+        t = piece_tri[p]
+        v0 = corners[t, 0]
+        e1 = corners[t, 1] - v0
+        e2 = corners[t, 2] - v0
+        nrm = np.array([e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]])
+        k = side_axis(nrm)
+        ia, ja = (k + 1) % 3, (k + 2) % 3
+        d = nrm[0] * v0[0] + nrm[1] * v0[1] + nrm[2] * v0[2]
+        a11, a12, a21, a22 = e1[ia], e2[ia], e1[ja], e2[ja]
+        det = a11 * a22 - a12 * a21
+        total = 0.0
+        cnt = 0
+        q = np.empty(3)
+        for si in range(samples * samples):
+            if det == 0.0 or nrm[k] == 0.0:
+                break
+            _, _, ok = r2_point(si, piece_cell[p], origin, h, v0, nrm, k, d, a11, a12, a21, a22, det, q)
+            if not ok:
+                continue
+            if piece_sign[p] != 0:
+                g = piece_plane[p, 3]
+                for a in range(3):
+                    g -= piece_plane[p, a] * (q[a] - origin[a]) / h
+                if g * piece_sign[p] > -1e-3:   # the other part's side, or on the cut itself (either's)
+                    continue
+            total += 1.0 - _buried(bvh, stack, double, mat_of, q[0], q[1], q[2], nx, ny, nz, local, near)
+            cnt += 1
+        if cnt == 0:
+            total = 1.0 - _buried(bvh, stack, double, mat_of, centroids[p, 0], centroids[p, 1], centroids[p, 2],
+                                  nx, ny, nz, local, near)
+            cnt = 1
+        out[p] = total / cnt
+
+
+def piece_weights(bvh, surfaces, corners, piece_tri, piece_cell, piece_plane, piece_sign, centroids, normals, origin,
+                  h: float) -> np.ndarray:
+    """(m,) weights in [BURIED_FLOOR, 1] of pieces (triangles piece_tri
+    clipped to cells piece_cell of the grid (origin, h), cut by
+    piece_plane on piece_sign's side, grid units; world `centroids`, unit
+    side `normals`): the share of their points that are not buried."""
+    out = np.zeros(len(piece_tri))
+    if len(piece_tri):
+        a = surfaces.arrays
+        buried_kernel(bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(corners, np.float64),
+                      piece_tri.astype(np.int32), piece_cell.astype(np.int64),
+                      np.ascontiguousarray(piece_plane, np.float64), np.ascontiguousarray(piece_sign, np.int8),
+                      np.ascontiguousarray(centroids, np.float64), np.ascontiguousarray(normals, np.float64),
+                      np.asarray(origin, np.float64), float(h), BURIED_SAMPLES, spiral_hemisphere(BURIED_RAYS),
+                      BURIED_REACH * h, out)
+    return np.maximum(out, BURIED_FLOOR)
+
+
+def voxel_relative(weights, area, vox_of_piece, n_voxels) -> np.ndarray:
+    """The weights, raised within a voxel (towards 1, in proportion) where
+    they would keep less than BURIED_KEEP of its area: the weighted area is
+    at least that share, so no voxel's irradiance grows more than
+    1 / BURIED_KEEP times (the test is a heuristic of winding: a model
+    wound inconsistently must not pour a voxel's photons onto a sliver). A
+    voxel whose pieces are all buried keeps its plain area."""
+    plain = np.bincount(vox_of_piece, weights=area, minlength=n_voxels)
+    kept = np.bincount(vox_of_piece, weights=area * weights, minlength=n_voxels)
+    short = np.maximum(BURIED_KEEP * plain - kept, 0.0)
+    t = np.where(short > 0, short / np.maximum(plain - kept, 1e-300), 0.0)
+    enclosed = kept <= 1.5 * BURIED_FLOOR * plain
+    t = np.where(enclosed, 1.0, np.minimum(t, 1.0))[vox_of_piece]
+    return weights + t * (1.0 - weights)
