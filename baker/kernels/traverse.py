@@ -329,6 +329,30 @@ def hit_normal(bvh, j):
                       tr[j, 6] - tr[j, 0], tr[j, 7] - tr[j, 1], tr[j, 8] - tr[j, 2])
 
 
+@njit(cache=True, error_model="numpy")
+def enclosed_in_plane(bvh, stack, ox, oy, oz, tx, ty, tz, bx, by, bz, reach):
+    """True where the rays from o along +-t and +-b (two unit tangents of a
+    surface under o) each first meet a triangle from behind (against its
+    winding) within `reach`: o lies inside a closed object around the
+    surface (a wall's point inside a step that runs into it, a floor's
+    point inside a board pushed into it), not in a gap under a sheet seen
+    from behind (the ceiling's point over a lamp hung 1 cm under it: those
+    rays leave the gap and meet the walls from the front)."""
+    for e in range(4):
+        s = 1.0 if e % 2 == 0 else -1.0
+        if e < 2:
+            dx, dy, dz = s * tx, s * ty, s * tz
+        else:
+            dx, dy, dz = s * bx, s * by, s * bz
+        _, j, _, _ = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, reach)
+        if j < 0:
+            return False
+        hx, hy, hz = hit_normal(bvh, j)
+        if hx * dx + hy * dy + hz * dz <= 0.0:
+            return False
+    return True
+
+
 _CHUNK = 256
 
 

@@ -25,7 +25,7 @@ from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.sampling import spiral_hemisphere
-from ..kernels.traverse import closest_hit, hit_normal
+from ..kernels.traverse import closest_hit, enclosed_in_plane, hit_normal
 from .albedo import r2_point
 from .clip import side_axis
 from .tolerances import BURIED_BACK, BURIED_FLOOR, BURIED_KEEP, BURIED_NEAR, BURIED_RAYS, BURIED_REACH, BURIED_SAMPLES
@@ -37,8 +37,8 @@ def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
     rays over n's hemisphere (directions `local` about +z), at least
     BURIED_BACK first meet a triangle from behind (against its winding)
     and at least BURIED_NEAR a one-sided one, or a two-sided one within
-    `near` (the texels' inside test, lightmap/texels.inside_geometry);
-    else 0.0."""
+    `near` where the rays along the surface meet from behind too (the
+    texels' inside test, lightmap/texels.inside_geometry); else 0.0."""
     if abs(nx) < 0.9:
         ax, ay, az = 1.0, 0.0, 0.0
     else:
@@ -49,7 +49,7 @@ def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
     bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
     e = 1e-3 * near   # off the piece's own plane
     ox, oy, oz = px + e * nx, py + e * ny, pz + e * nz
-    backs = close = 0
+    backs = close1 = close2 = 0
     for k in range(len(local)):
         lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
         dx = lx * tx + ly * bx + lz * nx
@@ -61,10 +61,16 @@ def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
         hx, hy, hz = hit_normal(bvh, j)
         if hx * dx + hy * dy + hz * dz > 0.0:
             backs += 1
-            if not double[mat_of[bvh.tri_index[j]]] or t <= near:
-                close += 1
+            if not double[mat_of[bvh.tri_index[j]]]:
+                close1 += 1
+            elif t <= near:
+                close2 += 1
     n = len(local)
-    return 1.0 if backs >= BURIED_BACK * n and close >= BURIED_NEAR * n else 0.0
+    if backs < BURIED_BACK * n or close1 + close2 < BURIED_NEAR * n:
+        return 0.0
+    if close1 >= BURIED_NEAR * n or enclosed_in_plane(bvh, stack, ox, oy, oz, tx, ty, tz, bx, by, bz, np.inf):
+        return 1.0
+    return 0.0
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
