@@ -35,7 +35,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.rng import keyed
 from ..kernels.sampling import frame
-from ..kernels.traverse import any_hit, closest_hit, enclosed_in_plane, hit_normal
+from ..kernels.traverse import any_hit, closest_hit, hit_normal
 
 COVER = 1.5           # texels: centres this near the triangle are sampled
 OUTSIDE = 1e-6        # texels: a centre farther than this from its triangle lies outside it (inside, the nearest
@@ -160,14 +160,16 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
     PROBES cosine-distributed rays, started `offset` off the surface, at
     least PROBE_BACK first hit a triangle from behind (against its winding)
     within `reach`, and at least PROBE_NEAR of them a one-sided triangle,
-    or a two-sided one within `near` where the rays along the surface meet
-    from behind too (traverse.enclosed_in_plane). Real scenes are often
+    or a two-sided one within `near`. Real scenes are often
     two-sided throughout (every one of the big scenes is), their closed
     objects still wound outward: a wall's texels inside a step that runs
     into it see the step's inner faces from behind, close by, and their
     darkness would bleed around the step's end; a sheet's back seen from
-    afar (a ceiling wound upward), or close by across a gap (a lamp under
-    the ceiling), is no closed object's inside. Where everything is
+    afar (a ceiling wound upward) is no closed object's inside (close by,
+    across a gap, it may be taken for one: the ceiling over a lamp hung
+    just under it; the texels marked there are hidden by the lamp, and
+    the ring at its outline takes the light beside it: unlike the
+    voxels', voxels/buried.py, this test moves no light). Where everything is
     one-sided this is the plain test (PROBE_BACK of the rays on back
     faces). Stratified directions, rotated per texel by a hash.
     texel_tri (N,) int32 the triangle a texel samples (-1: none),
@@ -210,11 +212,7 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
                             close1 += 1
                         elif tt <= near:
                             close2 += 1
-            n_p = side * side
-            if backs < PROBE_BACK * n_p or close1 + close2 < PROBE_NEAR * n_p:
-                continue
-            out[k] = close1 >= PROBE_NEAR * n_p or enclosed_in_plane(bvh, stack, ox, oy, oz, tx[0], tx[1], tx[2],
-                                                                     bx[0], bx[1], bx[2], reach)
+            out[k] = backs >= PROBE_BACK * side * side and close1 + close2 >= PROBE_NEAR * side * side
     return out
 
 
