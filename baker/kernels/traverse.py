@@ -329,6 +329,24 @@ def hit_normal(bvh, j):
                       tr[j, 6] - tr[j, 0], tr[j, 7] - tr[j, 1], tr[j, 8] - tr[j, 2])
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def back_hit(bvh, stack, double, mat_of, ox, oy, oz, dx, dy, dz, reach, near):
+    """What the ray from o along d first meets, for the inside tests
+    (lightmap/texels.inside_geometry, voxels/buried.py): 0 nothing within
+    `reach` or a triangle's front, 1 a two-sided triangle from behind
+    (against its winding) beyond `near`, 2 a one-sided one from behind,
+    3 a two-sided one from behind within `near`."""
+    t, j, _, _ = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, reach)
+    if j < 0:
+        return 0
+    hx, hy, hz = hit_normal(bvh, j)
+    if hx * dx + hy * dy + hz * dz <= 0.0:
+        return 0
+    if not double[mat_of[bvh.tri_index[j]]]:
+        return 2
+    return 3 if t <= near else 1
+
+
 @njit(cache=True, error_model="numpy")
 def enclosed_in_plane(bvh, stack, ox, oy, oz, tx, ty, tz, bx, by, bz, reach):
     """True where the rays from o along +-t and +-b (two unit tangents of a

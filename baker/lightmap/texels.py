@@ -35,7 +35,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.rng import keyed
 from ..kernels.sampling import frame
-from ..kernels.traverse import any_hit, closest_hit, hit_normal
+from ..kernels.traverse import any_hit, back_hit, closest_hit, hit_normal
 
 COVER = 1.5           # texels: centres this near the triangle are sampled
 OUTSIDE = 1e-6        # texels: a centre farther than this from its triangle lies outside it (inside, the nearest
@@ -191,7 +191,7 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
             ox = point[k, 0] + offset * nx
             oy = point[k, 1] + offset * ny
             oz = point[k, 2] + offset * nz
-            backs = close1 = close2 = 0
+            backs = close = 0
             for p in range(side * side):
                 u1 = ((p // side) + r1) / side
                 u1 = u1 - 1.0 if u1 >= 1.0 else u1
@@ -203,16 +203,10 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
                 dx = x * tx[0] + y * bx[0] + z * nx
                 dy = x * tx[1] + y * bx[1] + z * ny
                 dz = x * tx[2] + y * bx[2] + z * nz
-                tt, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, reach)
-                if j >= 0:
-                    hx, hy, hz = hit_normal(bvh, j)
-                    if hx * dx + hy * dy + hz * dz > 0.0:
-                        backs += 1
-                        if not double[mat_of[bvh.tri_index[j]]]:
-                            close1 += 1
-                        elif tt <= near:
-                            close2 += 1
-            out[k] = backs >= PROBE_BACK * side * side and close1 + close2 >= PROBE_NEAR * side * side
+                what = back_hit(bvh, stack, double, mat_of, ox, oy, oz, dx, dy, dz, reach, near)
+                backs += what > 0
+                close += what > 1
+            out[k] = backs >= PROBE_BACK * side * side and close >= PROBE_NEAR * side * side
     return out
 
 

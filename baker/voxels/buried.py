@@ -24,8 +24,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..kernels.sampling import spiral_hemisphere
-from ..kernels.traverse import closest_hit, enclosed_in_plane, hit_normal
+from ..kernels.sampling import frame, spiral_hemisphere
+from ..kernels.traverse import back_hit, enclosed_in_plane
 from .albedo import r2_point
 from .clip import side_axis
 from .tolerances import BURIED_BACK, BURIED_FLOOR, BURIED_KEEP, BURIED_NEAR, BURIED_RAYS, BURIED_REACH, BURIED_SAMPLES
@@ -39,32 +39,17 @@ def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
     and at least BURIED_NEAR a one-sided one, or a two-sided one within
     `near` where the rays along the surface meet from behind too (the
     texels' inside test, lightmap/texels.inside_geometry); else 0.0."""
-    if abs(nx) < 0.9:
-        ax, ay, az = 1.0, 0.0, 0.0
-    else:
-        ax, ay, az = 0.0, 1.0, 0.0
-    tx, ty, tz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
-    tl = np.sqrt(tx * tx + ty * ty + tz * tz)
-    tx, ty, tz = tx / tl, ty / tl, tz / tl
-    bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    (tx, ty, tz), (bx, by, bz) = frame(nx, ny, nz)
     e = 1e-3 * near   # off the piece's own plane
     ox, oy, oz = px + e * nx, py + e * ny, pz + e * nz
     backs = close1 = close2 = 0
     for k in range(len(local)):
         lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
-        dx = lx * tx + ly * bx + lz * nx
-        dy = lx * ty + ly * by + lz * ny
-        dz = lx * tz + ly * bz + lz * nz
-        t, j, _, _ = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
-        if j < 0:
-            continue
-        hx, hy, hz = hit_normal(bvh, j)
-        if hx * dx + hy * dy + hz * dz > 0.0:
-            backs += 1
-            if not double[mat_of[bvh.tri_index[j]]]:
-                close1 += 1
-            elif t <= near:
-                close2 += 1
+        what = back_hit(bvh, stack, double, mat_of, ox, oy, oz, lx * tx + ly * bx + lz * nx,
+                        lx * ty + ly * by + lz * ny, lx * tz + ly * bz + lz * nz, np.inf, near)
+        backs += what > 0
+        close1 += what == 2
+        close2 += what == 3
     n = len(local)
     if backs < BURIED_BACK * n or close1 + close2 < BURIED_NEAR * n:
         return 0.0
