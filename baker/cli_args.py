@@ -243,7 +243,7 @@ def _render_parser(sub):
 
 
 def _bake_parser(sub):
-    from .config import MAX_GATHER, MAX_INDIRECT_STRIDE, MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
+    from .config import MAX_GATHER, MAX_GATHER_SPACING, MAX_INDIRECT_STRIDE, MAX_TEXEL_SAMPLES, TEXEL_SOURCES, UV_MODES
     p = sub.add_parser("bake", help="bake lightmaps into a glTF file a viewer can walk through",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Bake a scene's diffuse global illumination into lightmaps and write a glTF\n"
@@ -282,6 +282,10 @@ def _bake_parser(sub):
                    help="rays per point of the bounced light's sparse lattice (--texel-indirect-stride) that gather it from the voxel "
                         "solution (preset: " + per_preset(lambda p: p.texel_gather) + "; 0: a lightcut over the "
                         "voxels' lights instead, slower)")
+    p.add_argument("--texel-gather-spacing", type=number(0, MAX_GATHER_SPACING), metavar="CELLS",
+                   help="the gathered bounced light is gathered at records this many voxel cells apart over the "
+                        "surfaces and interpolated between those in sight that agree; elsewhere at the texel itself "
+                        f"(preset: {per_preset(lambda p: p.texel_gather_spacing)}; 0: on each map's lattice)")
     p.add_argument("--texels", choices=TEXEL_SOURCES,
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
     run_args(p)

@@ -11,6 +11,7 @@ from .errors import ConfigError
 
 
 MAX_GATHER = 65_536   # gather rays per point at most (the solver's and the texels')
+MAX_GATHER_SPACING = 16.0   # cells between the gathered light's records at most (coarser says nothing useful)
 
 
 @dataclass(frozen=True)
@@ -159,7 +160,10 @@ class BakeConfig:
     lightcuts' cap); texel_gather: with a stride above 1, the smooth
     lattice's bounced light is gathered from the voxel solution by this
     many rays per point (solve/gather.py) instead of a cut over the
-    voxels' VPLs (0: the cut)."""
+    voxels' VPLs (0: the cut); texel_gather_spacing: the gathered light
+    is gathered at records this many voxel cells apart over the surfaces
+    and interpolated between them (lightmap/smooth_cache.py), except where
+    they disagree (0: at each map's lattice)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
@@ -172,6 +176,7 @@ class BakeConfig:
     texel_indirect_stride: int = 1
     texel_indirect_cap: int = 4000
     texel_gather: int = 0
+    texel_gather_spacing: float = 0.0
     preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
 
     def __post_init__(self):
@@ -189,6 +194,9 @@ class BakeConfig:
             raise ConfigError(f"the bounced light's cut cap must be >= 1 (got {self.texel_indirect_cap})")
         if not 0 <= self.texel_gather <= MAX_GATHER:
             raise ConfigError(f"the bounced light's gather rays must lie in [0, {MAX_GATHER}] (got {self.texel_gather})")
+        if not (math.isfinite(self.texel_gather_spacing) and 0 <= self.texel_gather_spacing <= MAX_GATHER_SPACING):
+            raise ConfigError(f"the gathered light's record spacing must lie in [0, {MAX_GATHER_SPACING}] cells "
+                              f"(got {self.texel_gather_spacing})")
         if self.uv not in UV_MODES:
             raise ConfigError(f"unknown UV mode {self.uv!r}; choose from {', '.join(UV_MODES)}")
         if self.texel_density is not None and not (math.isfinite(self.texel_density) and self.texel_density > 0):

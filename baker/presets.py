@@ -23,7 +23,8 @@ class Preset:
     counts as a sharp change, and adaptive shading's agreement;
     texel_indirect_stride, texel_indirect_cap, texel_gather: the bounced
     light's sparse lattice, its cuts' cap, and its gather rays per point
-    that replace those cuts (config.BakeConfig); texel_cap: the cap of
+    that replace those cuts, texel_gather_spacing the cells between the
+    gather's records (config.BakeConfig); texel_cap: the cap of
     the texels' cuts of the emitters' light (None: the lightcuts')."""
     name: str
     about: str
@@ -38,6 +39,7 @@ class Preset:
     texel_indirect_cap: int = 4000
     texel_gather: int = 0
     texel_cap: int | None = None
+    texel_gather_spacing: float = 0.0
 
 
 # Tuned by bench/tradeoff.py, bench/bake_error.py and bench/real_scenes.py (bench/results/): the preview shows the
@@ -60,13 +62,14 @@ PRESETS = {p.name: p for p in (
                         max_bounces=64, gather_rays=256),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
-           texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400),
+           texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400,
+           texel_gather_spacing=1.0),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
-           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024),
+           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=0.5),
 )}
 
 
@@ -102,7 +105,8 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
 
 def bake_config(name="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
-                texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, **solver_overrides) -> BakeConfig:
+                texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, texel_gather_spacing=None,
+                **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
     bound; the rest as config.BakeConfig, solver_overrides as
@@ -125,6 +129,7 @@ def bake_config(name="default", uv="per-triangle", texel_density=None, texels=No
         int(texel_indirect_stride if texel_indirect_stride is not None else p.texel_indirect_stride),
         int(p.texel_indirect_cap),
         int(texel_gather if texel_gather is not None else p.texel_gather),
+        float(texel_gather_spacing if texel_gather_spacing is not None else p.texel_gather_spacing),
         preview_lightcuts=lightcuts_config(name, seed=solver.seed))
 
 

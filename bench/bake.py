@@ -1,10 +1,13 @@
 """Bake benchmark: `voxbake bake` on the Cornell box and the walkthrough
 scene at each preset, each run in its own process (so peak memory is the
 run's own): time and peak memory per stage, texels, maps, pages, dedup
-ratio; and the error of the baked Cornell box as a viewer shows it against
-the path tracer (relative RMSE over the lit pixels, lamp excluded).
+ratio; what the texels' shading cost (points shaded, shadow and gather
+rays, rays per second of the texel stage, cut mean); and the error of
+each bake as a viewer shows it against the path tracer at the scene's
+camera (128x128; the mean ratio, the worst 8x8 block, the relative RMSE
+over the lit pixels, lamp excluded). References are cached in bench/out.
 
-    python bench/bake.py [--runs 3] [--scenes cornell_box walkthrough] [--json]
+    python bench/bake.py [--runs 3] [--scenes cornell_box walkthrough] [--texel-density D] [--json]
 """
 from __future__ import annotations
 
@@ -23,9 +26,9 @@ PRESETS = ("preview", "default", "high")
 STAGES = ("bvh", "voxelize", "photons", "propagation", "charts", "lights", "texels", "atlas", "write")
 
 
-def bake(scene, preset, out, stats):
+def bake(scene, preset, out, stats, extra=()):
     r = subprocess.run([sys.executable, "-m", "baker", "bake", scene, "--preset", preset, "-o", out, "--stats",
-                        stats], capture_output=True, text=True, cwd=ROOT)
+                        stats, *extra], capture_output=True, text=True, cwd=ROOT)
     if r.returncode:
         raise SystemExit(f"bake {scene} {preset} failed:\n{r.stderr}")
     with open(stats) as f:
@@ -37,13 +40,36 @@ def rng(values, fmt="{:.2f}"):
     return fmt.format(lo) if fmt.format(lo) == fmt.format(hi) else f"{fmt.format(lo)}-{fmt.format(hi)}"
 
 
-def image_error(path, reference, size):
+def image_error(scene, path, reference, size):
+    """(mean ratio, worst 8x8 block, relative RMSE) of the bake at `path`
+    as the viewer shows it at its scene's camera against `reference`,
+    over the pixels that do not see a lamp."""
+    import baker
     from baker.bake import read_bake, render_bake
-    from baker.render.compare import LUMINANCE, lit_pixels
-    img = render_bake(read_bake(path), 0, size, size) @ LUMINANCE
-    ref = reference @ LUMINANCE
-    lit = lit_pixels(ref)
-    return float(np.sqrt(np.mean((img[lit] - ref[lit]) ** 2)) / ref[lit].mean())
+    from baker.render.compare import LUMINANCE, compare, lamp_pixels
+    from baker.scene import build_scene_bvh, camera_for, pack
+    sc = baker.load_scene(scene)
+    bvh = build_scene_bvh(sc)
+    lamp = lamp_pixels(bvh, pack(sc), camera_for(sc, None, bvh), size, size)
+    img = render_bake(read_bake(path), 0, size, size)
+    c = compare(img, reference, lamp=lamp)
+    img, ref = img @ LUMINANCE, reference @ LUMINANCE
+    lit = ~lamp & (ref > 0)
+    worst = c.blocks[np.argmax(np.abs(c.blocks - 1))] if len(c.blocks) else 1.0
+    return c.mean, worst, float(np.sqrt(np.mean((img[lit] - ref[lit]) ** 2)) / ref[lit].mean())
+
+
+def reference(scene, spp, size=128):
+    """The path tracer's image of a built-in scene at its camera, cached."""
+    cache = os.path.join(ROOT, "bench", "out", f"{scene}_pt_{spp}.npy" if scene != "cornell_box" else
+                         f"cornell_pt_{spp}.npy")
+    if os.path.exists(cache):
+        return np.load(cache)
+    import baker
+    ref = baker.render(baker.load_scene(scene), 0, size, size, spp=spp)
+    os.makedirs(os.path.dirname(cache), exist_ok=True)
+    np.save(cache, ref)
+    return ref
 
 
 def main():
@@ -51,18 +77,19 @@ def main():
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--scenes", nargs="+", default=["cornell_box", "walkthrough"])
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
-    ap.add_argument("--ref-spp", type=int, default=4096, help="path tracer samples of the Cornell reference")
+    ap.add_argument("--ref-spp", type=int, default=4096, help="path tracer samples of the references")
+    ap.add_argument("--texel-density", type=float, help="passed to every bake (default: the presets')")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    rows, error_rows = [], []
-    ref = None
+    extra = ["--texel-density", str(args.texel_density)] if args.texel_density else []
+    rows, shading_rows, error_rows = [], [], []
     tmp = tempfile.mkdtemp(prefix="voxgi-bench-")
     for scene in args.scenes:
         for preset in args.presets:
             runs = []
             for k in range(args.runs):
                 out, st = os.path.join(tmp, f"{scene}_{preset}.glb"), os.path.join(tmp, f"{scene}_{preset}.json")
-                runs.append(bake(scene, preset, out, st))
+                runs.append(bake(scene, preset, out, st, extra))
             c = runs[-1]["counters"]
             stage = {s: rng([r["stages"].get(s, {}).get("seconds", 0.0) for r in runs]) for s in STAGES}
             shaded = f"{c['points_shaded']:,}" if "points_shaded" in c else "-"
@@ -70,24 +97,26 @@ def main():
                          f"{c['unique']:,}/{c['maps']:,}",
                          c["pages"], f"{c['dedup_ratio']:.2f}", *stage.values(),
                          rng([r["total_seconds"] for r in runs]), rng([r["peak_rss_mb"] for r in runs], "{:.0f}")])
-            if scene == "cornell_box":
-                if ref is None:
-                    cache = os.path.join(ROOT, "bench", "out", f"cornell_pt_{args.ref_spp}.npy")
-                    if os.path.exists(cache):
-                        ref = np.load(cache)
-                    else:
-                        import baker
-                        ref = baker.render(baker.load_scene("cornell_box"), 0, 128, 128, spp=args.ref_spp)
-                        os.makedirs(os.path.dirname(cache), exist_ok=True)
-                        np.save(cache, ref)
-                err = image_error(out, ref, 128)
-                error_rows.append([preset, rng([r["total_seconds"] for r in runs]), f"{100 * err:.2f}%"])
+            if "shadow_rays" in c:
+                rays = c["shadow_rays"] + c.get("gather_rays", 0)
+                per_s = [rays / max(r["stages"]["texels"]["seconds"], 1e-9) / 1e6 for r in runs]
+                shading_rows.append([scene, preset, f"{args.texel_density or 1 / c['cell_size']:.3g}",
+                                     f"{c['texels_covered']:,}", shaded, f"{c['shadow_rays']:,}",
+                                     f"{c.get('gather_rays', 0):,}", rng(per_s), f"{c['cut_mean']:.0f}"])
+            mean, worst, err = image_error(scene, out, reference(scene, args.ref_spp), 128)
+            error_rows.append([scene, preset, rng([r["total_seconds"] for r in runs]), f"{mean:.3f}", f"{worst:.2f}",
+                               f"{100 * err:.2f}%"])
     emit(args, "voxbake bake: stages (seconds, min-max over runs), counts, peak memory", rows,
          ["scene", "preset", "voxels", "texels", "points shaded", "maps stored/all", "pages", "dedup", *STAGES, "total s",
           "peak MiB"])
-    if error_rows:
-        emit(args, f"Cornell box bake as the viewer shows it vs the path tracer ({args.ref_spp} spp, 128x128): "
-                   "relative RMSE over the lit pixels", error_rows, ["preset", "bake s", "rel. RMSE"])
+    if shading_rows:
+        emit(args, "texel shading: texels per scene unit, texels with a point, points shaded, rays, million rays "
+                   "per second of the texel stage (shadow and gather), cut mean", shading_rows,
+             ["scene", "preset", "texels/unit", "texels sampled", "points shaded", "shadow rays", "gather rays",
+              "Mrays/s", "cut mean"])
+    emit(args, f"bake as the viewer shows it vs the path tracer ({args.ref_spp} spp, 128x128; relative RMSE over "
+               "the lit pixels, lamp excluded)", error_rows,
+         ["scene", "preset", "bake s", "mean ratio", "worst 8x8 block", "rel. RMSE"])
 
 
 if __name__ == "__main__":

@@ -77,6 +77,9 @@ def test_bake_refuses_bad_settings(tmp_path):
              (["-o", tmp_path / "x.glb", "--texel-indirect-stride", "nan"], "argument --texel-indirect-stride"),
              (["-o", tmp_path / "x.glb", "--texel-gather", "-1"], "argument --texel-gather: must lie in 0..65,536"),
              (["-o", tmp_path / "x.glb", "--texel-gather", "1e9"], "argument --texel-gather"),
+             (["-o", tmp_path / "x.glb", "--texel-gather-spacing", "-1"], "argument --texel-gather-spacing"),
+             (["-o", tmp_path / "x.glb", "--texel-gather-spacing", "nan"], "argument --texel-gather-spacing"),
+             (["-o", tmp_path / "x.glb", "--texel-gather-spacing", "17"], "argument --texel-gather-spacing"),
              (["-o", tmp_path / "x.glb", "--gather-rays", "-1"], "argument --gather-rays: must lie in 0..65,536"),
              (["-o", tmp_path / "x.glb", "--gather-rays", "nan"], "argument --gather-rays"),
              # 32 maps of 512 x 512 (every triangle's map at its cap): 1.25 GiB, over a budget of 500 MiB

@@ -386,3 +386,125 @@ def test_a_map_capped_at_a_page_says_its_texels_are_coarser():
     assert note.startswith("1 of 2 triangle maps reached a page's size (512x512): their texels are up to 0.0")
     assert capped_note(per_triangle_charts(small, np.zeros(1, bool), 0.01), 0.01) is None
     assert capped_note(object(), 0.01) is None
+
+
+def _dense_floor(tmp_path, step, wall=False):
+    """_floor_map's floor (with wall: and its one-sided wall at x = 4.5)
+    with texel points `step` apart over x, y in [0, 8], half a step off
+    the wall's foot (a point under a wall is inside geometry: no bake
+    shades it)."""
+    bvh, _, _ = _floor_map(tmp_path, wall=wall)
+    g = np.arange(0.5 * step, 8.0, step)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    point = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    return bvh, point, np.tile([0.0, 0.0, 1.0], (len(point), 1))
+
+
+def test_the_gather_cache_gathers_once_a_cell_and_interpolates_smoothly(tmp_path):
+    """SmoothCache on a floor with texel points 0.1 apart, records a unit
+    apart, a gathered light 1 + 0.5 x: about one gather per unit cell (81
+    cells, 6,561 points; the same at points 0.05 apart); away from the
+    floor's edges (where the records stop short) the field is read within
+    0.2% (a linear fit reproduces it but for its slope's ridge);
+    neighbouring points 0.1 apart differ by at most 5% more than the
+    field does (0.05; a cache of one value per cell jumps by 0.5, a
+    weighted mean of the records by up to 0.11); a constant light is read
+    exactly everywhere."""
+    from baker.lightmap.smooth_cache import SmoothCache
+    bvh, point, normals = _dense_floor(tmp_path, 0.1)
+    asked = []
+
+    def linear(p, n):
+        asked.append(len(p))
+        return (1 + 0.5 * p[:, 0])[:, None] * np.ones(3)
+
+    c = SmoothCache(bvh.arrays, linear, point, normals, 1.0, 0.01)
+    assert c.gathered == 64 and not c.own.any()
+    v = c.values[:, 0]
+    inner = np.all((point[:, :2] >= 1.0) & (point[:, :2] <= 7.0), axis=1)
+    np.testing.assert_allclose(v[inner], 1 + 0.5 * point[inner, 0], rtol=2e-3)
+    n = int(round(np.sqrt(len(point))))
+    grid = v.reshape(n, n)
+    assert np.abs(np.diff(grid, axis=0)).max() <= 1.05 * 0.1 * 0.5
+    assert np.abs(np.diff(grid, axis=1)).max() <= 1.05 * 0.1 * 0.5
+    bvh, fine, fn = _dense_floor(tmp_path, 0.05)
+    assert SmoothCache(bvh.arrays, linear, fine, fn, 1.0, 0.01).gathered == c.gathered
+    flat = SmoothCache(bvh.arrays, lambda p, n: np.full((len(p), 3), 0.7), point, normals, 1.0, 0.01)
+    np.testing.assert_allclose(flat.values, 0.7, rtol=1e-14)
+
+
+def test_the_gather_cache_does_not_reach_through_a_wall_nor_across_a_thin_wall(tmp_path):
+    """A one-sided wall at x = 4.5 on the floor: a gathered light of 1 left
+    of it and 0 right of it. Every point right of the wall reads exactly
+    0 and every point left of it exactly 1 (the records beyond the wall
+    are out of sight). The two faces of a thin wall (points at one place
+    facing apart, light 2 on one face and 0 on the other) each read only
+    their own side."""
+    from baker.lightmap.smooth_cache import SmoothCache
+    bvh, point, normals = _dense_floor(tmp_path, 0.1, wall=True)
+    c = SmoothCache(bvh.arrays, lambda p, n: np.where((p[:, 0] < 4.5)[:, None], 1.0, 0.0) * np.ones(3), point,
+                    normals, 1.0, 0.01)
+    left = point[:, 0] < 4.5
+    assert np.all(c.values[left] == 1.0) and np.all(c.values[~left] == 0.0)
+    g = np.arange(0.0, 3.0 + 1e-9, 0.1)
+    y, z = np.meshgrid(g, g, indexing="ij")
+    face = np.stack([np.full(y.size, 20.0), y.ravel(), z.ravel()], axis=1)
+    both = np.concatenate([face, face])
+    nrm = np.concatenate([np.tile([1.0, 0, 0], (len(face), 1)), np.tile([-1.0, 0, 0], (len(face), 1))])
+    c = SmoothCache(bvh.arrays, lambda p, n: np.where((n[:, 0] > 0)[:, None], 2.0, 0.0) * np.ones(3), both, nrm,
+                    1.0, 0.01)
+    assert np.all(c.values[:len(face)] == 2.0) and np.all(c.values[len(face):] == 0.0)
+
+
+def test_the_gather_cache_gathers_where_its_records_disagree(tmp_path):
+    """A gathered light of 1 with a step to 3 from x = 4.45 on (a contact's
+    edge): with refine(agree 0.2), the points whose records straddle the
+    step are gathered themselves and read the field exactly; the rest
+    (records all one side) are exact too, and only points within the
+    records' reach of the step are added. Without refine, the points
+    beside the step read a blend of the two."""
+    from baker.lightmap.smooth_cache import RADIUS, SmoothCache
+    bvh, point, normals = _dense_floor(tmp_path, 0.1)
+
+    def step(p, n):
+        return np.where((p[:, 0] > 4.45)[:, None], 3.0, 1.0) * np.ones(3)
+
+    c = SmoothCache(bvh.arrays, step, point, normals, 1.0, 0.01)
+    exact = np.where(point[:, 0] > 4.45, 3.0, 1.0)
+    assert np.any(np.abs(c.values[:, 0] - exact) > 0.5)
+    before = c.gathered
+    added = c.refine(np.zeros(len(point)), 0.2)
+    np.testing.assert_array_equal(c.values[:, 0], exact)
+    assert added == c.gathered - before > 0
+    assert np.all(np.abs(point[c.own, 0] - 4.45) <= 2 * RADIUS)
+
+
+@pytest.mark.parametrize("height", [0.2, 0.8])
+def test_the_gather_cache_does_not_share_under_a_low_overhang(tmp_path, height):
+    """A thin slab `height` over the floor for 3 < x < 6 (a low step,
+    facing down; records 1 apart): a gathered light of 0.1 under it and 1
+    beside it. Points the slab's height or more from its edges read
+    exactly 0.1 under it and exactly 1 beside it, with no refine: a
+    segment between each point and a record, raised to half its
+    clearance, crosses a low slab, and a point whose clearance differs by
+    more than a factor of two from a record's does not read it. (With the
+    lift alone, 2,320 points of the low slab's read a blend, up to 0.85 of
+    a spacing from its edges. Nearer an edge the light itself blends: a
+    point there sees part of the room.)"""
+    from baker.lightmap.smooth_cache import SmoothCache
+    from baker.scene import build_scene_bvh, load_scene
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    w = b.material("w", (0.5,) * 3)
+    b.mesh("floor", *quad((-1, -1, 0), (9, -1, 0), (9, 9, 0), (-1, 9, 0), facing=(0, 0, 1)), w)
+    b.mesh("slab", *quad((3, -1, height), (6, -1, height), (6, 9, height), (3, 9, height), facing=(0, 0, -1)), w)
+    b.save(tmp_path / "s.glb")
+    bvh = build_scene_bvh(load_scene(tmp_path / "s.glb"))
+    g = np.arange(0.05, 8.0, 0.1)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    point = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    under = (point[:, 0] > 3) & (point[:, 0] < 6)
+    c = SmoothCache(bvh.arrays, lambda p, n: np.where(((p[:, 0] > 3) & (p[:, 0] < 6))[:, None], 0.1, 1.0) * np.ones(3),
+                    point, np.tile([0.0, 0.0, 1.0], (len(point), 1)), 1.0, 0.01)
+    deep = np.minimum(np.abs(point[:, 0] - 3), np.abs(point[:, 0] - 6)) >= height
+    assert np.all(c.values[under & deep] == 0.1) and np.all(c.values[~under & deep] == 1.0)

@@ -106,7 +106,7 @@ def _meta(scene, config, solution, counts) -> dict:
             "texel_samples": config.texel_samples if config.lightcuts else 1,
             "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,
             "texel_indirect": {"stride": config.texel_indirect_stride, "cap": config.texel_indirect_cap,
-                               "gather": config.texel_gather}
+                               "gather": config.texel_gather, "gather_spacing": config.texel_gather_spacing}
             if config.lightcuts else None,
             "seed": config.solver.seed, "scene": scene.path, "solution": {k: v for k, v in solution.info.items()
                                                                            if k != "history"},

@@ -20,6 +20,7 @@ from .atlas import Lightmaps
 from .charts import Charts, per_triangle_charts
 from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners,
                      sub_texel_points)
+from .smooth_cache import SmoothCache, cube_bins, representatives
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import xatlas_layout
 
@@ -255,6 +256,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     if stride > 1:   # sharp light at every point, the smooth light on a sparse lattice (shade_bounced below)
         lights, bounced = split_lights(lights, seed, tree=config.texel_gather == 0)
         gather = config.texel_gather if bounced is not None else 0
+    spacing = config.texel_gather_spacing if gather else 0.0   # cells; 0: the gather on each map's lattice
+    sky = bounced is not None and len(bounced.sky) > 0
     samples, contrast, interpolate = config.texel_samples, config.texel_contrast, config.texel_interpolate
     h = float(solution.voxels.cell_size)
     corners = surfaces.arrays.corners
@@ -284,15 +287,24 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
                 progress(int(ok[b].sum()))
         return out
 
+    def gathered_at(pts, nrm):
+        out = np.zeros((len(pts), 3))
+        for a in range(0, len(pts), BATCH):
+            b = slice(a, a + BATCH)
+            out[b] = gather_bounced(prepared, solution, pts[b], nrm[b], lift, gather)
+            checkpoint()
+        gathered[0] += len(pts) * gather
+        return out
+
     def shade_bounced(pts, nrm, floor):
         """The smooth light at points whose sharp light has luminance
         `floor`: its cut's error is bounded against the whole."""
-        if gather and not len(bounced.sky):   # no sky, and the voxels' light by the gather: no cut at all
+        if gather and not sky:   # no sky, and the voxels' light by the gather: no cut at all
             out = np.zeros((len(pts), 3))
             uncut[0] += len(pts)
         else:
             out = shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
-        if gather:   # `bounced` holds the sky alone: the voxels' light by the gather
+        if gather and not spacing:   # `bounced` holds the sky alone: the voxels' light by the gather
             for a in range(0, len(pts), BATCH):
                 b = slice(a, a + BATCH)
                 out[b] += gather_bounced(prepared, solution, pts[b], nrm[b], lift, gather)
@@ -300,14 +312,27 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
             gathered[0] += len(pts) * gather
         return out
 
-    if len(small):
-        cv = small_triangle_light(lambda p, n, f: shade(p, n, np.ones(len(p), bool), floor=f),
-                                  shade_bounced if bounced is not None else None, cpts,
-                                  side_normals(corners, layout.tri[small], layout.back[small]), once,
-                                  surfaces.arrays.tri_material[layout.tri[small]],
-                                  CLUSTER_CELL * texel_size_for(solution, config.texel_density), bool(gather))
-        corner_values(layout, corners, small, cv, point, off, values)
     want = found & ~by_corners
+    cache = None
+    cluster_cell = CLUSTER_CELL * texel_size_for(solution, config.texel_density)
+    small_normals = side_normals(corners, layout.tri[small], layout.back[small]) if len(small) else None
+    small_material = surfaces.arrays.tri_material[layout.tri[small]] if len(small) else None
+    if spacing:   # the gathered light at records spread over the surfaces, interpolated (smooth_cache.py)
+        at = np.nonzero(want & ~inside)[0]
+        sp, sn = smooth_points(cpts, small_normals, once, small_material, cluster_cell) if len(small) else \
+            (np.zeros((0, 3)), np.zeros((0, 3)))
+        cache = SmoothCache(bvh.arrays, gathered_at, np.concatenate([point[at], sp]),
+                            np.concatenate([normals[at], sn]), spacing * h, lift)
+        cached = np.zeros((len(point), 3))
+        cached[at] = cache.values[:len(at)]
+    if len(small):
+        smooth_small = shade_bounced if bounced is not None else None
+        if cache is not None:
+            def smooth_small(p, n, f):
+                return cache.values[len(at):] + (shade_bounced(p, n, f) if sky else 0.0)
+        cv = small_triangle_light(lambda p, n, f: shade(p, n, np.ones(len(p), bool), floor=f),
+                                  smooth_small, cpts, small_normals, once, small_material, cluster_cell, bool(gather))
+        corner_values(layout, corners, small, cv, point, off, values)
     bounced_args = None
     known = None
     sfloor = None   # the smooth light's luminance at each texel: what the sharp cuts' error is bounded against too
@@ -317,8 +342,13 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
                         reach)
         if gather:   # the gathered smooth light first (it takes no floor), its agreement test once the sharp is known
             known = (np.full(len(point), -1, np.int32), [])
-            sfloor = (sparse_bounced(shade_bounced, bounced_args[0], np.zeros((len(point), 3)), *bounced_args[1:],
-                                     known=known) @ LUMINANCE).astype(np.float32)   # a floor: float32 is plenty
+            first = np.zeros((len(point), 3))
+            if cache is None or sky:
+                first = sparse_bounced(shade_bounced, bounced_args[0], first, *bounced_args[1:], known=known)
+            if cache is not None:
+                first += cached
+            sfloor = (first @ LUMINANCE).astype(np.float32)   # a floor: float32 is plenty
+            del first
 
     def floor_at(idx):
         return None if sfloor is None else sfloor[idx]
@@ -345,9 +375,15 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     else:
         values[todo] = shade(point[todo], normals[todo], np.ones(len(todo), bool), floor=floor_at(todo))
     indirect = np.zeros((len(point), 3))
-    if bounced is not None:
+    if bounced is not None and (cache is None or sky):
         indirect = sparse_bounced(shade_bounced, bounced_args[0], values, *bounced_args[1:], float(contrast),
                                   known=known)
+    if cache is not None:   # the records' spread against the texel's whole light: contacts gathered at the texel
+        lum = np.zeros(len(cache.points))
+        lum[:len(at)] = (values[at] + indirect[at]) @ LUMINANCE
+        lum[len(at):] = np.inf   # small triangles' points: their light is already taken
+        cache.refine(lum, float(contrast))
+        indirect[at] += cache.values[:len(at)]
     aa = np.zeros(0, np.int64)
     if samples > 1:
         # the sharp part's edges (the smooth part is the texel's own: slow by construction, shaded apart)
@@ -507,27 +543,22 @@ def point_clusters(points, normals, material, cell):
     members' mean (a point on a surface: the mean of a curved patch's
     points lies under it), ties to the first, with the members' mean
     normal; of: each point's cluster, in the order of the clusters' keys."""
-    m = len(points)
-    if not m:
+    if not len(points):
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
-    ax = np.argmax(np.abs(normals), axis=1)
-    r = np.arange(m)
-    major = normals[r, ax]
-    minor = np.stack([normals[r, (ax + 1) % 3], normals[r, (ax + 2) % 3]], axis=1) / np.abs(major)[:, None]
-    q = np.clip(np.floor((minor + 1.0) * (0.5 * CLUSTER_BINS)), 0, CLUSTER_BINS - 1)
-    key = np.column_stack([np.floor(points / cell), 2 * ax + (major > 0), q, material]).astype(np.int64)
-    _, of = np.unique(key, axis=0, return_inverse=True)
-    of = of.ravel()
-    k = int(of.max()) + 1
-    count = np.bincount(of, minlength=k)
-    mean = np.stack([np.bincount(of, weights=points[:, c], minlength=k) for c in range(3)], axis=1) / count[:, None]
-    normal = np.stack([np.bincount(of, weights=normals[:, c], minlength=k) for c in range(3)], axis=1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    dist = np.linalg.norm(points - mean[of], axis=1)
-    order = np.lexsort((r, dist, of))          # by cluster, then distance, then index
-    first = np.ones(m, bool)
-    first[1:] = of[order[1:]] != of[order[:-1]]
-    return order[first], of, normal
+    key = np.column_stack([np.floor(points / cell).astype(np.int64), cube_bins(normals, CLUSTER_BINS),
+                           np.asarray(material, np.int64)])
+    return representatives(points, normals, key)
+
+
+def smooth_points(pts, normals, once, material, cell):
+    """(points (k, 3), normals (k, 3)): where small_triangle_light shades
+    the smooth light of sub-texel triangles (shading points pts (m, 3, 3),
+    side normals (m, 3)): the centroids of those shaded at three corners,
+    then each cluster's point of those shaded once."""
+    three = np.nonzero(~once)[0]
+    one = np.nonzero(once)[0]
+    rep, _, cnormal = point_clusters(pts[one, 0], normals[one], material[one], cell)
+    return np.concatenate([pts[three].mean(axis=1), pts[one[rep], 0]]), np.concatenate([normals[three], cnormal])
 
 
 def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell, smooth_first=False):
@@ -547,7 +578,7 @@ def small_triangle_light(shade, shade_smooth, pts, normals, once, material, cell
     rep, of, cnormal = point_clusters(pts[one, 0], normals[one], material[one], cell)
     sharp_at = (np.concatenate([pts[three].reshape(-1, 3), pts[one[rep], 0]]),
                 np.concatenate([np.repeat(normals[three], 3, axis=0), cnormal]))
-    smooth_at = (np.concatenate([pts[three].mean(axis=1), pts[one[rep], 0]]), np.concatenate([normals[three], cnormal]))
+    smooth_at = smooth_points(pts, normals, once, material, cell)
     smooth = None
     if shade_smooth is not None and smooth_first:
         smooth = shade_smooth(*smooth_at, np.zeros(len(smooth_at[0])))
