@@ -69,7 +69,7 @@ PRESETS = {p.name: p for p in (
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
-           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=0.5),
+           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0),
 )}
 
 

@@ -8,27 +8,30 @@ of every map, whose cost follows the triangle count as much as the area:
 each small triangle's map brings its own lattice corners) spends most of
 its rays on light that is already known. Here the points that need the
 bounced light (texel points, small triangles' points) are grouped by a
-world grid `spacing` apart and by the way they face (point_clusters'
-cube-map bins, coarser); each group is gathered once, at its member
-nearest the group's mean with the group's mean normal: a record. Every
-point then takes a weighted linear fit over the records within RADIUS spacings
-that face its way (cosine at least MIN_COS), lie on its plane (within
-PLANE spacings of it along its normal) and are in sight of it (a segment
-between the two, lifted off their surfaces, meets nothing: no light
-comes through a wall; and a segment between the two each raised HIGH
-spacings, or half the way to what stands over it, meets nothing either:
-a floor under a low step does not share with the floor beside it, whose
-hemisphere the step does not cover); and whose clearances (how far each
-sees along its normal, up to CLEAR spacings) agree within a factor of
-two: under a step higher than the raised segment, the floor's records
-are its own (the groups are split by clearance too). The weights are smooth in the point's position and
-the fit reproduces a light that changes linearly, so neighbouring texels
-differ by what the light itself changes between them.
-Where the records a point reads disagree by more than `agree` of the
-largest plus the point's own sharp light (a contact, a shadow of the
-bounced light), or where no record qualifies, the point is gathered
-itself. The number of gathers follows the surface's area in cells, not
-the texel density or the triangle count."""
+world grid `spacing` apart, by the way they face (cube-map bins) and by
+their clearance (how far each sees along its normal, up to CLEAR
+spacings); each group is gathered once, at its member nearest the
+group's mean with the group's mean normal: a record.
+
+A point reads the records within RADIUS spacings that
+- face its way (cosine at least MIN_COS) and lie on its plane (within
+  PLANE spacings of it along its normal);
+- are in sight of it: a segment between the two, lifted off their
+  surfaces, meets nothing (no light comes through a wall);
+- are in sight of it higher up too: the segment between the two each
+  raised HIGH spacings, or half their clearance if lower, meets nothing
+  (a floor under a low step does not read the floor beside it, whose
+  hemisphere the step does not cover);
+- and whose clearance agrees with its own within a factor of two (under
+  a step higher than that segment).
+Its value is a weighted linear fit over its tangent plane (smooth
+weights; a light that changes linearly is reproduced, so neighbouring
+texels differ by what the light itself changes between them). Where the
+records a point reads disagree by more than `agree` of the largest plus
+the point's own sharp light (a contact, a shadow of the bounced light),
+or where no record qualifies, the point is gathered itself. The number
+of gathers follows the surface's area in cells, not the texel density or
+the triangle count."""
 from __future__ import annotations
 
 import numpy as np
