@@ -166,7 +166,16 @@ def test_bake_writes_a_readable_file_and_a_summary(tmp_path):
     bake = read_bake(out)
     s = json.load(open(stats))
     assert s["counters"]["pages"] == len(bake.pages) and "texels" in s["stages"]
+    # the texel size asked for: one per voxel cell unless --texel-density says otherwise
+    cell = s["counters"]["cell_size"]
+    row = [line.split(None, 2)[2] for line in stdout.splitlines() if line.strip().startswith("texel size")]
+    assert s["counters"]["texel_size_asked"] == cell and row == [f"{cell:.4g} scene units ({1 / cell:.3g} a unit)"]
     assert sorted(os.listdir(tmp_path)) == ["c.glb", "s.json"]  # nothing else left behind
+    code, stdout, err = cli("bake", "cornell_box", "-o", tmp_path / "d.glb", "--preset", "preview", "--resolution",
+                            "12", "--photons", "20000", "--texel-density", "40")
+    assert code == 0, err
+    row = [line.split(None, 2)[2] for line in stdout.splitlines() if line.strip().startswith("texel size")]
+    assert row == ["0.025 scene units (40 a unit)"], row
 
 
 def test_every_render_method_runs_from_the_command_line(tmp_path):

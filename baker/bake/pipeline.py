@@ -48,7 +48,9 @@ class BakeResult:
                                                if ts.gather_rays else ""))]
         else:
             rows += [("VPLs / average cut", "- (preview: texel values from the voxel solution)")]
-        rows += [("texels", f"{c['texels']:,} in {c['charts']:,} maps ({c['texels_covered']:,} sampled, "
+        asked = c["texel_size_asked"]
+        rows += [("texel size", f"{asked:.4g} scene units ({1 / asked:.3g} a unit)"),
+                 ("texels", f"{c['texels']:,} in {c['charts']:,} maps ({c['texels_covered']:,} sampled, "
                             f"{c['texels_inside']:,} inside geometry)")]
         rows += [("points shaded", f"{ts.points_shaded:,} ({ts.texels_shaded:,} texels, {ts.texels_interpolated:,} "
                                    f"interpolated; {ts.subtexel_triangles:,} small-triangle sides at their corners or centroid; "
@@ -143,7 +145,8 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     checkpoint()
     counts = dict(maps.counts, charts=charts.chart_count,
                   texels_covered=int(texels.covered.sum()), texels_inside=int(texels.inside.sum()),
-                  dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)), **shading)
+                  dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)),
+                  texel_size_asked=float(texel_size), **shading)
     stats.count(**counts)
     meta = _meta(scene, config, solution, counts)
     ordered = None
