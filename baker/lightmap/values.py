@@ -237,7 +237,10 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     voxels' VPLs, the sky: split_lights) is shaded on a sparse lattice
     (sparse_bounced), a sub-texel triangle's at its centroid; the sharp
     part's edges alone call for anti-aliasing. With config.texel_gather
-    the bounced light is gathered (gather.py), whose error needs no floor:
+    the bounced light is gathered (gather.py; with
+    config.texel_gather_spacing at records over the surfaces instead of
+    the lattice, smooth_cache.py, the sky's light staying on the lattice),
+    whose error needs no floor:
     the smooth part is then shaded first, and the sharp part's cuts are
     bounded against the texel's whole light (their floor: the smooth
     light there), as the smooth part's cuts are otherwise.
