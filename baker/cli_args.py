@@ -250,17 +250,21 @@ def _bake_parser(sub):
                                    "binary (.glb): the geometry with lightmap UVs (TEXCOORD_1), the lightmap\n"
                                    "pages as 8-bit PNGs (MOZ_lightmap: three.js, Hubs, Unity read them) and as\n"
                                    "half-float EXR (for voxview), cameras, lights and the bake's settings.\n\n"
-                                   "Texels are one voxel cell wide unless --texel-density says otherwise. Texel\n"
+                                   "Texels are one voxel cell wide, or finer where the preset asks for a number of\n"
+                                   "texels across the scene's thinnest extent (a room's height), within the memory\n"
+                                   "budget, unless --texel-density says otherwise; the summary prints the size. Texel\n"
                                    "values come from the voxel solution reconstructed at each texel, or from\n"
                                    "lightcuts over virtual point lights (direct light with shadow rays, bounced\n"
                                    "light from the voxels); the presets below say which.")
     scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
-    p.add_argument("--uv", choices=UV_MODES, default="per-triangle",
-                   help="lightmap UVs: one square map per triangle (default: deduplicated, quadtree-packed) or "
-                        "xatlas charts over connected triangles")
+    p.add_argument("--uv", choices=UV_MODES, default="auto",
+                   help="lightmap UVs: per-triangle, one square map per triangle (deduplicated, quadtree-packed); "
+                        "xatlas, charts over connected triangles; auto (default), per-triangle unless its maps "
+                        "would hold over 8x the texels of charts (triangles under a texel, slivers)")
     p.add_argument("--texel-density", type=number(0, 1e9, lo_open=True), metavar="D",
-                   help="texels per scene unit (default: one texel per voxel cell)")
+                   help="texels per scene unit (default: one per voxel cell, or "
+                        f"{per_preset(lambda p: p.texels_across)} across the scene's thinnest extent where finer)")
     p.add_argument("--preview-vpls", type=integer(0, 1 << 24), default=65_536,
                    help="VPLs in the bake's ordered list for the viewer's progressive preview (default 65536; "
                         "0: none)")

@@ -128,17 +128,21 @@ class LightcutsConfig:
             raise ConfigError(f"the cut cap must be >= 1 (got {self.cap})")
 
 
-UV_MODES = ("per-triangle", "xatlas")
+UV_MODES = ("auto", "per-triangle", "xatlas")
 TEXEL_SOURCES = ("voxels", "lightcuts")
 MAX_TEXEL_SAMPLES = 8
 MAX_INDIRECT_STRIDE = 16
+MAX_TEXELS_ACROSS = 4096
 
 
 @dataclass(frozen=True)
 class BakeConfig:
     """solver: the voxel solution's settings; uv: 'per-triangle' (the
-    thesis's texture method) or 'xatlas' (charts); texel_density: texels
-    per scene unit (None: one texel per voxel cell); preset: the name it
+    thesis's texture method), 'xatlas' (charts) or 'auto' (per-triangle
+    unless its maps would be mostly margin: lightmap/values.py,
+    plan_texels); texel_density: texels per scene unit (None: one texel
+    per voxel cell, or the scene's thinnest extent over texels_across
+    where that is finer, within the memory budget); preset: the name it
     came from; lightcuts: how texels are shaded (None: the voxel solution
     reconstructed at each texel, the preview tier; else lightcuts over the
     VPLs, the default and high tiers); preview_lightcuts: the VPLs of the
@@ -178,6 +182,7 @@ class BakeConfig:
     texel_gather: int = 0
     texel_gather_spacing: float = 0.0
     preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
+    texels_across: int = 0
 
     def __post_init__(self):
         if not 1 <= self.texel_samples <= MAX_TEXEL_SAMPLES:
@@ -202,6 +207,8 @@ class BakeConfig:
         if self.texel_density is not None and not (math.isfinite(self.texel_density) and self.texel_density > 0):
             raise ConfigError(f"texel density must be a positive number of texels per scene unit "
                               f"(got {self.texel_density})")
+        if not 0 <= self.texels_across <= MAX_TEXELS_ACROSS:
+            raise ConfigError(f"texels across the scene must lie in [0, {MAX_TEXELS_ACROSS}] (got {self.texels_across})")
         if self.preview_vpls < 0:
             raise ConfigError(f"the preview's VPL count must be >= 0 (got {self.preview_vpls})")
 

@@ -25,7 +25,9 @@ class Preset:
     light's sparse lattice, its cuts' cap, and its gather rays per point
     that replace those cuts, texel_gather_spacing the cells between the
     gather's records (config.BakeConfig); texel_cap: the cap of
-    the texels' cuts of the emitters' light (None: the lightcuts')."""
+    the texels' cuts of the emitters' light (None: the lightcuts');
+    texels_across: texels over the scene's thinnest extent where that is
+    finer than a voxel cell (0: one texel per cell)."""
     name: str
     about: str
     solver: SolverConfig
@@ -40,6 +42,7 @@ class Preset:
     texel_gather: int = 0
     texel_cap: int | None = None
     texel_gather_spacing: float = 0.0
+    texels_across: int = 0
 
 
 # Tuned by bench/tradeoff.py, bench/bake_error.py and bench/real_scenes.py (bench/results/): the preview shows the
@@ -63,13 +66,14 @@ PRESETS = {p.name: p for p in (
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400,
-           texel_gather_spacing=1.0),
+           texel_gather_spacing=1.0, texels_across=64),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
-           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0),
+           texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0,
+           texels_across=128),
 )}
 
 
@@ -103,10 +107,10 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
     return _overridden(preset(name).lightcuts, overrides, "lightcuts")
 
 
-def bake_config(name="default", uv="per-triangle", texel_density=None, texels=None, epsilon=None,
+def bake_config(name="default", uv="auto", texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
                 texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, texel_gather_spacing=None,
-                **solver_overrides) -> BakeConfig:
+                texels_across=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
     bound; the rest as config.BakeConfig, solver_overrides as
@@ -130,7 +134,8 @@ def bake_config(name="default", uv="per-triangle", texel_density=None, texels=No
         int(p.texel_indirect_cap),
         int(texel_gather if texel_gather is not None else p.texel_gather),
         float(texel_gather_spacing if texel_gather_spacing is not None else p.texel_gather_spacing),
-        preview_lightcuts=lightcuts_config(name, seed=solver.seed))
+        preview_lightcuts=lightcuts_config(name, seed=solver.seed),
+        texels_across=int(texels_across if texels_across is not None else p.texels_across))
 
 
 def help_table() -> str:

@@ -231,7 +231,8 @@ def test_furnace_sphere_of_small_triangles(preset, spread):
     0.982-1.009; default 0.996, 0.992-0.999)."""
     from baker import load_scene
     scene = load_scene("furnace_sphere")
-    tx = bake_scene(scene, bake_config(preset, resolution=24, photons=300_000, direct_vpls=8192)).texels
+    tx = bake_scene(scene, bake_config(preset, "per-triangle", resolution=24, photons=300_000, direct_vpls=8192,
+                                       texels_across=0)).texels   # a texel per cell: the premise above
     assert tx.layout.subtexel.all()
     m = scene.materials[0]
     h = tx.values[tx.covered & tx.filled] / (np.pi * m.emission / (1 - m.albedo))
@@ -447,7 +448,7 @@ def test_texels_across_a_shadow_edge_take_the_mean_over_their_square(make_scene,
     from its edges are checked (the others are clamped onto the triangle's
     edge, or on its edge band: test_edge_band_texels_...)."""
     scene = shadow_edge_scene(make_scene)
-    tx = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+    tx = bake_scene(scene, bake_config("default", "per-triangle", texel_density=8, resolution=16, photons=20_000,
                                                 texel_samples=samples, texel_interpolate=0.0)).texels
     checked = {"edge": 0, "far": 0, "fraction": 0}
     for c, i, j, k, x0, t in inner_floor_texels(scene, tx):
@@ -481,7 +482,7 @@ def test_adaptive_shading_keeps_the_shadow_edge_and_the_smooth_light(make_scene)
     light's curvature: measured 0.50% at most); unlit texels are exactly
     0."""
     scene = shadow_edge_scene(make_scene)
-    result = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+    result = bake_scene(scene, bake_config("default", "per-triangle", texel_density=8, resolution=16, photons=20_000,
                                                    texel_samples=2, texel_interpolate=0.1))
     bake, tx = result.bake, result.texels
     counts = bake.meta["counts"]
@@ -533,7 +534,7 @@ def test_anti_aliasing_points_beyond_a_shared_edge_lie_on_the_next_triangle(make
     from baker.lightmap.texels import NUDGE
     scene = shadow_edge_scene(make_scene)
     side = 4
-    tx = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+    tx = bake_scene(scene, bake_config("default", "per-triangle", texel_density=8, resolution=16, photons=20_000,
                                                 texel_samples=side, texel_contrast=0.0, texel_interpolate=0.0)).texels
     ch = tx.layout
     floor_tris = np.nonzero(scene.material_ids >= 0)[0][:2]
@@ -581,8 +582,8 @@ def _fine_floor_bake(make_scene, density):
     b.light("bulb", "point", intensity=I_BULB, position=(0.2, 1.0, 0.1))
     scene = make_scene(b, "bake_fine_floor")
     st = Stats("bake")
-    tx = bake_scene(scene, bake_config("default", texel_density=density, resolution=16, photons=20_000,
-                                       texel_samples=1), st).texels
+    tx = bake_scene(scene, bake_config("default", "per-triangle", texel_density=density, resolution=16,
+                                       photons=20_000, texel_samples=1), st).texels
     return scene, st, tx
 
 
@@ -662,7 +663,7 @@ def test_small_triangles_of_a_curved_surface_keep_their_facing(make_scene):
     b.light("sun", "directional", intensity=4.0, direction=tuple(sun))
     scene = make_scene(b, "bake_fine_ball")
     st = Stats("bake")
-    tx = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+    tx = bake_scene(scene, bake_config("default", "per-triangle", texel_density=8, resolution=16, photons=20_000,
                                        texel_samples=1), st).texels
     n_tri = len(scene.triangles)
     assert st.counters["subtexel_triangles"] == n_tri
@@ -691,7 +692,7 @@ def test_texels_across_a_shared_edge_sample_their_own_centre(make_scene):
            b.material("black", (0.0,) * 3))
     b.light("bulb", "point", intensity=I_BULB, position=(0.3, 1.2, -0.4))
     scene = make_scene(b, "bake_floor_quad")
-    tx = bake_scene(scene, bake_config("default", texel_density=8, resolution=16, photons=20_000,
+    tx = bake_scene(scene, bake_config("default", "per-triangle", texel_density=8, resolution=16, photons=20_000,
                                                 texel_samples=1, texel_interpolate=0.0)).texels
     ch = tx.layout
     across = 0

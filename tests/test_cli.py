@@ -4,6 +4,7 @@ warnings. Commands run in this process (conftest.cli) unless a signal, a
 time bound or another working folder is what the test is about."""
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -169,13 +170,16 @@ def test_bake_writes_a_readable_file_and_a_summary(tmp_path):
     # the texel size asked for: one per voxel cell unless --texel-density says otherwise
     cell = s["counters"]["cell_size"]
     row = [line.split(None, 2)[2] for line in stdout.splitlines() if line.strip().startswith("texel size")]
-    assert s["counters"]["texel_size_asked"] == cell and row == [f"{cell:.4g} scene units ({1 / cell:.3g} a unit)"]
+    assert s["counters"]["texel_size_asked"] == cell
+    auto = r"uv per-triangle \(auto: per-triangle maps would shade [0-9.]+x the points of charts\)\)"
+    assert len(row) == 1 and re.fullmatch(re.escape(f"{cell:.4g} scene units ({1 / cell:.3g} a unit; one voxel cell; ")
+                                          + auto, row[0]), row
     assert sorted(os.listdir(tmp_path)) == ["c.glb", "s.json"]  # nothing else left behind
     code, stdout, err = cli("bake", "cornell_box", "-o", tmp_path / "d.glb", "--preset", "preview", "--resolution",
                             "12", "--photons", "20000", "--texel-density", "40")
     assert code == 0, err
     row = [line.split(None, 2)[2] for line in stdout.splitlines() if line.strip().startswith("texel size")]
-    assert row == ["0.025 scene units (40 a unit)"], row
+    assert len(row) == 1 and re.fullmatch(re.escape("0.025 scene units (40 a unit; as asked; ") + auto, row[0]), row
 
 
 def test_every_render_method_runs_from_the_command_line(tmp_path):

@@ -508,3 +508,95 @@ def test_the_gather_cache_does_not_share_under_a_low_overhang(tmp_path, height):
                     point, np.tile([0.0, 0.0, 1.0], (len(point), 1)), 1.0, 0.01)
     deep = np.minimum(np.abs(point[:, 0] - 3), np.abs(point[:, 0] - 6)) >= height
     assert np.all(c.values[under & deep] == 0.1) and np.all(c.values[~under & deep] == 1.0)
+
+
+def _plan(scene, cell, **kw):
+    from baker.lightmap.values import plan_texels
+    return plan_texels(scene, cell, **kw)
+
+
+def test_the_default_texel_follows_the_scene_not_the_voxel_cell(cornell):
+    """The presets' texel size: the walkthrough (a 3 m high house whose
+    default voxel cell is 0.144 m) gets texels of 5 cm or less (its height
+    over 64) and xatlas charts (its per-triangle maps would be ~47x the
+    texels: a floor of 2 cm triangles); the Cornell box keeps at least one
+    texel per cell (0.00877) and its per-triangle maps; a density asked for
+    is taken as asked, and texels_across 0 is one texel per cell."""
+    from baker.presets import PRESETS
+    import baker
+    across = PRESETS["default"].texels_across
+    walk = baker.load_scene("walkthrough")
+    plan = _plan(walk, 0.1439, texels_across=across, uv="auto")
+    assert plan.texel_size <= 0.05 and plan.uv == "xatlas", plan
+    assert 0.99 * 3.0 / 64 <= plan.texel_size
+    cell = 0.5560 / 64 * 1.01   # the Cornell box's default cell (a texel per cell before the presets asked more)
+    plan = _plan(cornell, cell, texels_across=across, uv="auto")
+    assert plan.texel_size <= cell and plan.uv == "per-triangle", plan
+    assert _plan(cornell, cell, texel_density=40, uv="auto").texel_size == 1 / 40
+    assert _plan(cornell, cell, texels_across=0).texel_size == cell
+    assert PRESETS["preview"].texels_across == 0   # the preview's texels follow its voxels
+
+
+def test_a_flat_scene_takes_its_width_not_its_thickness(make_scene):
+    """A lone floor (zero thickness): its thinnest extent that is not flat
+    is its width, so the texel is width / texels_across, not zero."""
+    from scenes.generate import GltfBuilder, quad
+    b = GltfBuilder()
+    grey = b.material("grey", (0.5,) * 3)
+    b.mesh("floor", *quad((-2, 0, -1), (2, 0, -1), (2, 0, 1), (-2, 0, 1), facing=(0, 1, 0)), grey)
+    scene = make_scene(b, "plan_flat_floor")
+    assert _plan(scene, 1.0, texels_across=64).texel_size == pytest.approx(2.0 / 64)
+
+
+def test_the_default_texel_is_coarsened_to_the_memory_budget(cornell):
+    """Under a memory budget the preset's texel grows until its layout's
+    texels fit (BYTES_PER_TEXEL each), by no more than the few percent one
+    step adds; a density asked for is not coarsened (the bake refuses it
+    before any work instead: test_cli)."""
+    from baker.lightmap.values import BYTES_PER_TEXEL, texel_estimate
+    budget = 4.0   # MiB
+    limit = budget * 2 ** 20 / BYTES_PER_TEXEL
+    plan = _plan(cornell, 0.02, texels_across=256, uv="xatlas", memory_budget_mb=budget)
+    assert plan.texels <= limit and texel_estimate(cornell, plan.texel_size, "xatlas") == plan.texels
+    assert texel_estimate(cornell, plan.texel_size / 1.1, "xatlas") > limit   # not coarser than it had to be
+    assert "memory budget" in plan.why
+    free = _plan(cornell, 0.02, texels_across=256, uv="xatlas")
+    assert free.texel_size < plan.texel_size and free.texels > limit
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_slivers_xatlas_drops_read_a_neighbours_texel(shared):
+    """xatlas leaves faces it rounds to zero area out of its charts (page
+    -1: a bake file would name a page that does not exist). Such a sliver
+    takes a charted side's page and a point UV inside it: one sharing a
+    corner vertex where there is one, else the nearest; it owns no texel
+    (the texels are those of the layout without it)."""
+    from baker.lightmap.xatlas_charts import xatlas_layout, xatlas_texels
+    at = np.array([1, 0, 0]) if shared else np.array([-0.5, 0, 1.2])   # the quad's corner, or apart by side 1
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1], at + [1e-4, 0, 0], at + [0, 0, 1e-4], at],
+                 np.float32)
+    t = np.array([[0, 1, 2], [0, 2, 3], [1 if shared else 6, 5, 4]], np.int32)
+    lay = xatlas_layout(v, t, np.zeros(3, bool), 0.05)
+    assert lay.borrowed.tolist() == [False, False, True]
+    assert (lay.page >= 0).all()
+    donor = 0 if shared else 1   # shared: the side at vertex 1; apart: the side with the nearest centroid
+    u = lay.uv[2]
+    assert np.ptp(u, axis=0).max() == 0   # a point
+    np.testing.assert_allclose(u[0], lay.uv[donor].mean(axis=0))
+    corners = v[t].astype(np.float64)
+    _, covered, tri, _, face = xatlas_texels(lay, corners)
+    assert covered.any() and not (face == 2).any()
+
+
+def test_the_nearest_charted_side_by_sweep_matches_brute_force():
+    """xatlas_charts._nearest (a sweep over points sorted by x) finds the
+    same nearest point as comparing every pair, including queries outside
+    the points' span and points sharing an x."""
+    from baker.lightmap.xatlas_charts import _nearest
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-1, 1, (400, 3))
+    pts[:40, 0] = 0.25   # a column of equal x
+    pts = pts[np.argsort(pts[:, 0], kind="stable")]
+    q = rng.uniform(-2, 2, (300, 3))
+    want = np.argmin(((q[:, None, :] - pts[None]) ** 2).sum(axis=2), axis=1)
+    np.testing.assert_array_equal(_nearest(np.ascontiguousarray(pts), np.ascontiguousarray(q)), want)

@@ -49,7 +49,8 @@ class BakeResult:
         else:
             rows += [("VPLs / average cut", "- (preview: texel values from the voxel solution)")]
         asked = c["texel_size_asked"]
-        rows += [("texel size", f"{asked:.4g} scene units ({1 / asked:.3g} a unit)"),
+        rows += [("texel size", f"{asked:.4g} scene units ({1 / asked:.3g} a unit; {c['texel_plan']})"
+                  if c.get("texel_plan") else f"{asked:.4g} scene units ({1 / asked:.3g} a unit)"),
                  ("texels", f"{c['texels']:,} in {c['charts']:,} maps ({c['texels_covered']:,} sampled, "
                             f"{c['texels_inside']:,} inside geometry)")]
         rows += [("points shaded", f"{ts.points_shaded:,} ({ts.texels_shaded:,} texels, {ts.texels_interpolated:,} "
@@ -78,7 +79,7 @@ def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = No
         return _bake(scene, config, stats, progress, bvh, surfaces)
 
 
-def _texels(prepared, solution, charts, config, stats, progress):
+def _texels(prepared, solution, charts, config, stats, progress, texel_size=None):
     """(TexelSet, Lights or None, TexelStats or None, counts): the texel
     values of the preview tier (the voxel solution) or of lightcuts."""
     from ..lightmap import lightcuts_texels, preview_texels
@@ -93,7 +94,7 @@ def _texels(prepared, solution, charts, config, stats, progress):
     with stats.stage("lights"):
         lights = build_lights(prepared, solution, lc)
     with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
-        texels, st = lightcuts_texels(prepared, solution, charts, lights, config, b.update)
+        texels, st = lightcuts_texels(prepared, solution, charts, lights, config, b.update, texel_size)
     return texels, lights, st, dict(lights.vpls.counts(), **asdict(st), epsilon=lc.epsilon, cut_cap=lc.cap)
 
 
@@ -116,37 +117,42 @@ def _meta(scene, config, solution, counts) -> dict:
 
 
 def _bake(scene, config, stats, progress, bvh, surfaces):
-    from ..lightmap import atlas_for, layout_for, texel_size_for
-    from ..lightmap.values import capped_note, check_texel_budget
+    from ..lightmap import atlas_for, layout_for
+    from ..lightmap.values import capped_note, check_texel_budget, plan_texels
     from ..lights import build_lights, ordered_vpls
     from ..scene import camera_for, prepare
     from ..solve import solve
     from ..startup import checkpoint
     from .mesh import baked_scene
     budget = config.solver.memory_budget_mb
+    plan = None
     if config.texel_density:   # refused before any work when the pages cannot fit
-        check_texel_budget(scene, texel_size_for(None, config.texel_density), config.uv, budget,
-                           f"--texel-density {config.texel_density:g}")
+        plan = plan_texels(scene, None, config.texel_density, uv=config.uv)
+        check_texel_budget(scene, plan.texel_size, plan.uv, budget, f"--texel-density {config.texel_density:g}")
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
     scene = prepared.scene
     solution = solve(prepared, config.solver, stats=stats, progress=progress)
     checkpoint()
-    with stats.stage("charts"):   # (one texel per voxel cell: the voxelization's own budget bounds it)
-        texel_size = texel_size_for(solution, config.texel_density)
-        charts = layout_for(scene, texel_size, config.uv)
+    with stats.stage("charts"):
+        if plan is None:   # the preset's size: from the voxel cell and the scene's extent, within the memory budget
+            plan = plan_texels(scene, float(solution.voxels.cell_size), None, config.texels_across, config.uv,
+                               budget)
+        texel_size = plan.texel_size
+        charts = layout_for(scene, texel_size, plan.uv)
     note = capped_note(charts, texel_size)
     if note:
         warnings.warn(note, VoxgiWarning, stacklevel=2)
     checkpoint()
-    texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress)
+    config = replace(config, uv=plan.uv)   # the layout made, as the file records it
+    texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress, texel_size)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
     checkpoint()
     counts = dict(maps.counts, charts=charts.chart_count,
                   texels_covered=int(texels.covered.sum()), texels_inside=int(texels.inside.sum()),
                   dedup_ratio=round(maps.dedup_ratio, 4), texel_size=float(np.min(charts.texel)),
-                  texel_size_asked=float(texel_size), **shading)
+                  texel_size_asked=float(texel_size), texel_plan=plan.why, **shading)
     stats.count(**counts)
     meta = _meta(scene, config, solution, counts)
     ordered = None

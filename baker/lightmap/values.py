@@ -83,6 +83,68 @@ def texel_size_for(solution, texel_density=None) -> float:
     return float(solution.voxels.cell_size)
 
 
+AUTO_XATLAS = 2.0   # --uv auto: xatlas charts once per-triangle maps would shade this many times their points
+
+
+@dataclass(frozen=True)
+class TexelPlan:
+    """What a bake's lightmaps will be, decided before they are made:
+    texel_size (scene units per texel), uv ('per-triangle' or 'xatlas'),
+    texels (the layout's estimated texel count) and why: a sentence for
+    the summary on how the size and the layout were chosen."""
+    texel_size: float
+    uv: str
+    texels: int
+    why: str
+
+
+def scene_extent(scene) -> float:
+    """The scene's thinnest extent that is not flat: the smallest side of
+    its triangles' bounding box of at least 1/1000 of the largest (a room's
+    height, a box's side; a lone floor's width, not its zero thickness)."""
+    c = scene.triangle_corners().reshape(-1, 3)
+    if not len(c):
+        return 0.0
+    ext = np.sort(c.max(axis=0).astype(np.float64) - c.min(axis=0))
+    ext = ext[ext >= 1e-3 * ext[-1]]
+    return float(ext[0]) if len(ext) and ext[-1] > 0 else 0.0
+
+
+def plan_texels(scene, cell, texel_density=None, texels_across=0, uv="per-triangle",
+                memory_budget_mb=float("inf")) -> TexelPlan:
+    """The texel size and layout of a bake. texel_density (texels per
+    scene unit) is taken as asked; otherwise the texel is the voxel `cell`
+    or, when texels_across > 0, the scene's thinnest extent over
+    texels_across where that is finer (detail follows the scene's scale,
+    not the voxel budget), coarsened until the layout's texels fit the
+    memory budget and this machine's memory (BYTES_PER_TEXEL each). uv
+    'auto': per-triangle maps, unless they would hold more than AUTO_XATLAS
+    times the texels of xatlas charts at that size (triangles under a
+    texel or slivers, whose square maps are mostly margin); then xatlas."""
+    if texel_density:
+        size, how = 1.0 / float(texel_density), "as asked"
+    else:
+        size, how = float(cell), "one voxel cell"
+        across = scene_extent(scene) / texels_across if texels_across else 0.0
+        if 0 < across < size:
+            size, how = across, f"the scene's thinnest extent over {texels_across}"
+    why = []
+    if uv == "auto":
+        per, xa = shading_estimate(scene, size, "per-triangle"), shading_estimate(scene, size, "xatlas")
+        uv = "xatlas" if per > AUTO_XATLAS * xa else "per-triangle"
+        why.append(f"uv {uv} (auto: per-triangle maps would shade {per / max(xa, 1):.1f}x the points of charts)")
+    n = texel_estimate(scene, size, uv)
+    limit = min(float(memory_budget_mb), machine_memory_mb()) * 2 ** 20 / BYTES_PER_TEXEL
+    if not texel_density:
+        for _ in range(12):   # per-triangle maps' count is not quite quadratic in the size: a few steps
+            if n <= limit:
+                break
+            size *= 1.02 * float(np.sqrt(n / limit))
+            how = "coarsened to the memory budget"
+            n = texel_estimate(scene, size, uv)
+    return TexelPlan(size, uv, int(n), "; ".join([how] + why))
+
+
 def capped_note(layout, texel_size) -> str | None:
     """A per-triangle layout whose largest maps stopped at a page's size
     (charts.MAX_SIZE) holds coarser texels there than `texel_size` asks:
@@ -128,6 +190,25 @@ def texel_estimate(scene, texel_size, uv="per-triangle") -> int:
         faces = 1 + np.asarray(scene.double_sided[scene.material_ids], np.int64)
         return int(np.ceil(XATLAS_PADDING * float((area * faces).sum()) / float(texel_size) ** 2))
     return charts_for(scene, texel_size).texel_count
+
+
+def shading_estimate(scene, texel_size, uv="per-triangle") -> int:
+    """Points a bake's layout shades at this texel size (what its texel
+    time follows), before any work: for xatlas the surface's texels with
+    their padding; per triangle, each map's texels on its triangle and a
+    texel's band around its edges (the texels bilinear lookups read, which
+    overlap the neighbours'), at most its square, and a sub-texel
+    triangle's three corner points."""
+    c = scene.triangle_corners().astype(np.float64)
+    if uv == "xatlas":
+        return texel_estimate(scene, texel_size, "xatlas")
+    charts = charts_for(scene, texel_size)
+    q = c[charts.tri]
+    area = 0.5 * np.linalg.norm(np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), axis=1)
+    rim = np.linalg.norm(q - np.roll(q, 1, axis=1), axis=2).sum(axis=1)
+    t = float(texel_size)
+    own = np.minimum(charts.size.astype(np.float64) ** 2, area / t ** 2 + rim / t + 1.0)
+    return int(np.ceil(np.where(charts.subtexel, 3.0, own).sum()))
 
 
 def machine_memory_mb() -> float:
@@ -210,7 +291,8 @@ def side_normals(corners, texel_tri, texel_back):
     return out
 
 
-def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) -> tuple[TexelSet, TexelStats]:
+def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
+                     texel_size=None) -> tuple[TexelSet, TexelStats]:
     """The default and high tiers: each texel's irradiance by lightcuts over
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
@@ -245,6 +327,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
     bounded against the texel's whole light (their floor: the smooth
     light there), as the smooth part's cuts are otherwise.
 
+    texel_size: the texel the layout was made for (TexelPlan; None: one
+    voxel cell or config.texel_density).
     config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
     texel_interpolate as `interpolate`)."""
@@ -317,7 +401,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None) 
 
     want = found & ~by_corners
     cache = None
-    cluster_cell = CLUSTER_CELL * texel_size_for(solution, config.texel_density)
+    # the texel asked for (a small triangle's map has finer texels of its own)
+    cluster_cell = CLUSTER_CELL * (texel_size or texel_size_for(solution, config.texel_density))
     small_normals = side_normals(corners, layout.tri[small], layout.back[small]) if len(small) else None
     small_material = surfaces.arrays.tri_material[layout.tri[small]] if len(small) else None
     if spacing:   # the gathered light at records spread over the surfaces, interpolated (smooth_cache.py)

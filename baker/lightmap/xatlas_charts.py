@@ -28,7 +28,10 @@ class XatlasLayout:
     """tri (m,) int32 and back (m,) bool: the charted triangle sides;
     page (m,) int32; uv (m, 3, 2) float64 the triangle's corners (in the
     scene's order, backs too) in page texels (0..PAGE, v down); n_pages; texel: scene units per texel; charts: xatlas charts;
-    utilization: mean share of a page's texels the charts cover."""
+    utilization: mean share of a page's texels the charts cover;
+    borrowed (m,) bool: sides xatlas left out of every chart (it drops
+    faces whose area it rounds to nothing), which read a neighbour's
+    texel (borrowed_uv) and own none."""
     tri: np.ndarray
     back: np.ndarray
     page: np.ndarray
@@ -37,6 +40,7 @@ class XatlasLayout:
     texel: float
     charts: int
     utilization: float
+    borrowed: np.ndarray | None = None
 
     per_triangle = False  # the Layout protocol (lightmap/values.py): a page's neighbour may be another chart
 
@@ -107,8 +111,73 @@ def xatlas_layout(vertices, triangles, two_sided, texel_size) -> XatlasLayout:
     uv = uvs[idx].astype(np.float64) * [atlas.width, atlas.height]
     uv[back] = uv[back][:, [0, 2, 1]]  # backs were charted wound the other way: back to the triangle's order
     page = page_of_vertex[idx[:, 0]].astype(np.int32)
+    borrowed = page < 0
+    if borrowed.any():
+        page, uv = borrowed_uv(triangles, corners, tri, back, page, uv)
     return XatlasLayout(tri, back, page, uv, int(atlas.atlas_count), texel, int(atlas.chart_count),
-                        float(atlas.utilization if np.isscalar(atlas.utilization) else np.mean(atlas.utilization)))
+                        float(atlas.utilization if np.isscalar(atlas.utilization) else np.mean(atlas.utilization)),
+                        borrowed)
+
+
+def borrowed_uv(triangles, corners, tri, back, page, uv):
+    """(page, uv) where every side xatlas left uncharted (page -1: slivers
+    whose area it rounds to nothing, far under a texel) takes the page and
+    the UV centroid of a charted side of the same facing, one sharing a
+    corner vertex where there is one, else the one whose centroid is
+    nearest: it reads that texel's light (its UV triangle is a point, so
+    it covers no texel of its own)."""
+    page, uv = page.copy(), uv.copy()
+    lost = np.nonzero(page < 0)[0]
+    kept = np.nonzero(page >= 0)[0]
+    if not len(kept):
+        raise ValueError("xatlas charted no triangle")
+    donor = np.full(len(lost), -1, np.int64)
+    key = (triangles[tri[kept]].astype(np.int64) * 2 + back[kept, None]).ravel()   # (vertex, facing) -> a side
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    for k in range(3):
+        want = triangles[tri[lost], k].astype(np.int64) * 2 + back[lost]
+        at = np.minimum(np.searchsorted(skey, want), len(skey) - 1)
+        hit = (skey[at] == want) & (donor < 0)
+        donor[hit] = kept[order[at[hit]] // 3]
+    centre = corners[tri].mean(axis=1)
+    for facing in (False, True):   # isolated slivers: the nearest charted side of the same facing
+        alone = np.nonzero((donor < 0) & (back[lost] == facing))[0]
+        if not len(alone):
+            continue
+        pool = kept[back[kept] == facing]
+        pool = pool if len(pool) else kept
+        order = np.argsort(centre[pool, 0], kind="stable")
+        donor[alone] = pool[order[_nearest(np.ascontiguousarray(centre[pool[order]]),
+                                           np.ascontiguousarray(centre[lost[alone]]))]]
+    page[lost] = page[donor]
+    uv[lost] = uv[donor].mean(axis=1, keepdims=True)
+    return page, uv
+
+
+@njit(cache=True)
+def _nearest(points, queries):
+    """For each query (m, 3), the index of the nearest of `points` (k, 3),
+    sorted by x: a sweep outwards from the query's x that stops once the x
+    gap alone exceeds the best distance (ties: the lower index)."""
+    out = np.zeros(queries.shape[0], np.int64)
+    xs = points[:, 0]
+    for i in range(queries.shape[0]):
+        qx, qy, qz = queries[i, 0], queries[i, 1], queries[i, 2]
+        start = np.searchsorted(xs, qx)
+        best, at = np.inf, 0
+        for step in (-1, 1):
+            j = start if step == 1 else start - 1
+            while 0 <= j < xs.shape[0]:
+                gap = xs[j] - qx
+                if gap * gap > best:
+                    break
+                d = gap * gap + (points[j, 1] - qy) ** 2 + (points[j, 2] - qz) ** 2
+                if d < best or (d == best and j < at):
+                    best, at = d, j
+                j += step
+        out[i] = at
+    return out
 
 
 @njit(cache=True)
@@ -120,6 +189,8 @@ def _rasterize(uv, page, n_pages, size, amount):
     best = np.full(n, np.inf)
     bary = np.zeros((n, 3))
     for f in range(uv.shape[0]):
+        if page[f] < 0:
+            continue
         q = uv[f]
         x0 = max(0, int(np.floor(min(q[0, 0], q[1, 0], q[2, 0]) - COVER)))
         x1 = min(size - 1, int(np.ceil(max(q[0, 0], q[1, 0], q[2, 0]) + COVER)))
@@ -145,7 +216,10 @@ def xatlas_texels(layout: XatlasLayout, corners, amount=0.0):
     """Sample points (N, 3), covered (N,), texel_tri (N,) int32, texel_back
     (N,) bool and face (N,) int32 (the layout's triangle side, -1: none) of
     every texel of every page (page-major, row-major)."""
-    face, bary = _rasterize(layout.uv, layout.page, layout.n_pages, PAGE, float(amount))
+    page = layout.page
+    if layout.borrowed is not None and layout.borrowed.any():
+        page = np.where(layout.borrowed, -1, page).astype(np.int32)   # a borrowing side owns no texel
+    face, bary = _rasterize(layout.uv, page, layout.n_pages, PAGE, float(amount))
     covered = face >= 0
     f = np.where(covered, face, 0)
     tri = layout.tri[f]
