@@ -261,7 +261,7 @@ def _bake_parser(sub):
     p.add_argument("--uv", choices=UV_MODES, default="auto",
                    help="lightmap UVs: per-triangle, one square map per triangle (deduplicated, quadtree-packed); "
                         "xatlas, charts over connected triangles; auto (default), per-triangle unless its maps "
-                        "would hold over 8x the texels of charts (triangles under a texel, slivers)")
+                        "would shade over twice the points of charts (triangles under a texel, slivers)")
     p.add_argument("--texel-density", type=number(0, 1e9, lo_open=True), metavar="D",
                    help="texels per scene unit (default: one per voxel cell, or "
                         f"{per_preset(lambda p: p.texels_across)} across the scene's thinnest extent where finer)")
