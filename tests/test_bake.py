@@ -469,25 +469,39 @@ def test_texels_across_a_shadow_edge_take_the_mean_over_their_square(make_scene,
     assert (checked["fraction"] > 0) == (samples > 1), checked
 
 
+@pytest.mark.parametrize("light", ["point", "sun"])
 @pytest.mark.parametrize("subdiv,uv", [(1, "per-triangle"), (1, "xatlas"), (64, "auto"), (64, "xatlas")])
-def test_the_shadow_edge_is_sharp_to_a_texel_on_any_tessellation(make_scene, subdiv, uv):
-    """shadow_edge_scene's point light and straight-edged blocker over a
-    floor that is one quad or 8,192 triangles each under half a texel, at
-    the default preset as shipped (adaptive shading, 2 x 2 at edges) but
-    texels of 1/8: every floor texel whose point lies more than one texel
-    from the analytic shadow line holds the exact light at its point
-    within 1% on the lit side and exactly nothing on the dark side, so the
-    baked boundary lies within a texel of the line along its whole length.
-    The fine floor under --uv auto takes xatlas charts, whose texels shade
-    their own points (per-triangle maps shade each cluster of such
-    triangles at one point, up to a texel away: 6.7% off here)."""
+def test_the_shadow_edge_is_sharp_to_a_texel_on_any_tessellation(make_scene, subdiv, uv, light):
+    """shadow_edge_scene's straight-edged blocker under its point light, or
+    under a slanted sun, over a floor that is one quad or 8,192 triangles
+    each under half a texel, at the default preset as shipped (adaptive
+    shading, 2 x 2 at edges) but texels of 1/8: every floor texel whose
+    point lies more than one texel from the analytic shadow line holds the
+    exact light at its point within 1% on the lit side and exactly nothing
+    on the dark side, so the baked boundary lies within a texel of the
+    line along its whole length. The fine floor under --uv auto takes
+    xatlas charts, whose texels shade their own points (per-triangle maps
+    shade each cluster of such triangles at one point, up to a texel away:
+    6.7% off under the point light)."""
     from scenes.generate import GltfBuilder, quad
     b = GltfBuilder()
     black = b.material("black", (0.0,) * 3)
     b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0), subdiv=subdiv), black)
     b.mesh("blocker", *quad((XE, 1, -2.5), (2.5, 1, -2.5), (2.5, 1, 2.5), (XE, 1, 2.5), facing=(0, -1, 0)), black)
-    b.light("bulb", "point", intensity=I_BULB, position=(XE, H_BULB, 0))
-    scene = make_scene(b, f"bake_shadow_edge_{subdiv}")
+    sun = np.array([0.3, -1.0, 0.1]) / np.linalg.norm([0.3, -1.0, 0.1])
+    if light == "point":
+        b.light("bulb", "point", intensity=I_BULB, position=(XE, H_BULB, 0))
+        line = XE
+
+        def light_at(x, z):
+            return bulb(x, z)
+    else:
+        b.light("sun", "directional", intensity=3.0, direction=tuple(sun))
+        line = XE - sun[0] / sun[1]   # the blocker's edge seen along the sun from the floor
+
+        def light_at(x, z):
+            return 3.0 * -sun[1] * (x < line)
+    scene = make_scene(b, f"bake_shadow_edge_{subdiv}_{light}")
     result = bake_scene(scene, bake_config("default", uv, texel_density=8, resolution=16, photons=20_000))
     tx, t = result.texels, 1 / 8
     assert result.bake.meta["uv"] == ("xatlas" if subdiv > 1 and uv == "auto" else uv)
@@ -495,17 +509,17 @@ def test_the_shadow_edge_is_sharp_to_a_texel_on_any_tessellation(make_scene, sub
     p = tx.point[floor]
     assert np.abs(p[:, 1]).max() < 1e-9 and len(p) > 900
     inner = np.all(np.abs(p[:, [0, 2]]) < 2 - t, axis=1)   # (a rim texel's square hangs over the floor's edge)
-    lit, dark = inner & (p[:, 0] < XE - t), inner & (p[:, 0] > XE + t)
+    lit, dark = inner & (p[:, 0] < line - t), inner & (p[:, 0] > line + t)
     v = tx.values[floor, 0]
-    want = bulb(p[:, 0], p[:, 2])
-    assert lit.sum() > 400 and dark.sum() > 200
+    want = light_at(p[:, 0], p[:, 2])
+    assert lit.sum() > 400 and dark.sum() > 150
     err = np.abs(v[lit] / want[lit] - 1)
     assert err.max() < 0.01, (err.max(), p[lit][np.argmax(err)])
     assert v[dark].max() == 0.0, p[dark][np.argmax(v[dark])]
     edge = inner & ~lit & ~dark   # within a texel of the line: between none and the most light over its square
     assert edge.sum() >= 30
-    most = bulb(np.full(edge.sum(), XE - 1e-9), np.maximum(np.abs(p[edge, 2]) - t, 0.0))
-    assert np.all((v[edge] >= 0) & (v[edge] <= most))
+    most = light_at(np.full(edge.sum(), line - 1e-9), np.maximum(np.abs(p[edge, 2]) - t, 0.0))
+    assert np.all((v[edge] >= 0) & (v[edge] <= most * (1 + 1e-9)))
 
 
 def test_adaptive_shading_keeps_the_shadow_edge_and_the_smooth_light(make_scene):
