@@ -564,6 +564,20 @@ def test_the_default_texel_is_coarsened_to_the_memory_budget(cornell):
     assert free.texel_size < plan.texel_size and free.texels > limit
 
 
+def test_a_budget_no_texel_size_fits_is_refused_in_one_line(cornell):
+    """Per-triangle maps keep 8 x 8 texels however coarse the texel: a
+    budget under the Cornell box's 32 smallest maps (2,048 texels, 0.3
+    MiB) cannot be met by coarsening, and the plan says so (BudgetError,
+    naming the file, the texels and the way out) instead of baking past
+    it."""
+    from baker.errors import BudgetError
+    with pytest.raises(BudgetError) as e:
+        _plan(cornell, 0.02, texels_across=64, uv="per-triangle", memory_budget_mb=0.1)
+    msg = e.value.one_line()
+    assert "cornell_box" in msg and "--memory-budget" in msg and "\n" not in msg
+    assert _plan(cornell, 0.02, texels_across=64, uv="per-triangle", memory_budget_mb=1.0).texels <= 2 ** 20 / 160
+
+
 @pytest.mark.parametrize("shared", [False, True])
 def test_slivers_xatlas_drops_read_a_neighbours_texel(shared):
     """xatlas leaves faces it rounds to zero area out of its charts (page

@@ -142,6 +142,12 @@ def plan_texels(scene, cell, texel_density=None, texels_across=0, uv="per-triang
             size *= 1.02 * float(np.sqrt(n / limit))
             how = "coarsened to the memory budget"
             n = texel_estimate(scene, size, uv)
+        if n > limit:   # per-triangle maps keep 8 x 8 texels however coarse: the triangles alone are too many
+            from ..errors import BudgetError
+            raise BudgetError(f"the lightmaps need about {n:,} texels ({n * BYTES_PER_TEXEL / 2 ** 20:,.0f} MiB to "
+                              f"bake) even at {size:.3g} scene units a texel with --uv {uv}, over the memory budget of "
+                              f"{limit * BYTES_PER_TEXEL / 2 ** 20:,.0f} MiB: raise --memory-budget or use --uv xatlas",
+                              getattr(scene, "path", None))
     return TexelPlan(size, uv, int(n), "; ".join([how] + why))
 
 
