@@ -258,10 +258,11 @@ def _bake_parser(sub):
                                    "light from the voxels); the presets below say which.")
     scene_args(p)
     p.add_argument("-o", "--output", required=True, help="output bake file (.glb)")
-    p.add_argument("--uv", choices=UV_MODES, default="auto",
+    p.add_argument("--uv", choices=UV_MODES,
                    help="lightmap UVs: per-triangle, one square map per triangle (deduplicated, quadtree-packed); "
-                        "xatlas, charts over connected triangles; auto (default), per-triangle unless its maps "
-                        "would shade over twice the points of charts (triangles under a texel, slivers)")
+                        "xatlas, charts over connected triangles; auto, per-triangle unless its maps would shade "
+                        "over twice the points of charts (triangles under a texel, slivers) (preset: "
+                        f"{per_preset(lambda p: p.uv)})")
     p.add_argument("--texel-density", type=number(0, 1e9, lo_open=True), metavar="D",
                    help="texels per scene unit (default: one per voxel cell, or "
                         f"{per_preset(lambda p: p.texels_across)} across the scene's thinnest extent where finer)")

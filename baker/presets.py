@@ -27,7 +27,8 @@ class Preset:
     gather's records (config.BakeConfig); texel_cap: the cap of
     the texels' cuts of the emitters' light (None: the lightcuts');
     texels_across: texels over the scene's thinnest extent where that is
-    finer than a voxel cell (0: one texel per cell)."""
+    finer than a voxel cell (0: one texel per cell); uv: the lightmap
+    layout (config.UV_MODES)."""
     name: str
     about: str
     solver: SolverConfig
@@ -43,8 +44,12 @@ class Preset:
     texel_cap: int | None = None
     texel_gather_spacing: float = 0.0
     texels_across: int = 0
+    uv: str = "auto"
 
 
+# The preview keeps per-triangle maps, its texels the voxels' light read at each: on the staircase --uv auto took
+# xatlas, 34 s of charting, and its texels' view fell from 0.95 to 0.877 of the path tracer's (60% of blocks within
+# 10%, from 87%).
 # Tuned by bench/tradeoff.py, bench/bake_error.py and bench/real_scenes.py (bench/results/): the preview shows the
 # voxels themselves, where smoothing the photons pays; default and high shade texels by lightcuts, where it made
 # the Cornell box's lightmaps brighter and worse. Every preset gathers the bounces after the photons by rays at the
@@ -58,7 +63,8 @@ PRESETS = {p.name: p for p in (
            SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0, tolerance=1e-2,
                         max_bounces=16, gather_rays=64),
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
-           texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0),
+           texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0,
+           uv="per-triangle"),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
            SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-2,
@@ -107,7 +113,7 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
     return _overridden(preset(name).lightcuts, overrides, "lightcuts")
 
 
-def bake_config(name="default", uv="auto", texel_density=None, texels=None, epsilon=None,
+def bake_config(name="default", uv=None, texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
                 texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, texel_gather_spacing=None,
                 texels_across=None, **solver_overrides) -> BakeConfig:
@@ -116,6 +122,7 @@ def bake_config(name="default", uv="auto", texel_density=None, texels=None, epsi
     bound; the rest as config.BakeConfig, solver_overrides as
     solver_config."""
     p = preset(name)
+    uv = uv or p.uv
     texels = texels or p.texels
     if texels not in TEXEL_SOURCES:
         raise ConfigError(f"texel values come from 'voxels' or 'lightcuts', not {texels!r}")
