@@ -205,11 +205,10 @@ def shading_estimate(scene, texel_size, uv="per-triangle") -> int:
     texel's band around its edges (the texels bilinear lookups read, which
     overlap the neighbours'), at most its square, and a sub-texel
     triangle's three corner points."""
-    c = scene.triangle_corners().astype(np.float64)
     if uv == "xatlas":
         return texel_estimate(scene, texel_size, "xatlas")
     charts = charts_for(scene, texel_size)
-    q = c[charts.tri]
+    q = scene.triangle_corners().astype(np.float64)[charts.tri]
     area = 0.5 * np.linalg.norm(np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), axis=1)
     rim = np.linalg.norm(q - np.roll(q, 1, axis=1), axis=2).sum(axis=1)
     t = float(texel_size)
