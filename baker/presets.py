@@ -67,7 +67,7 @@ PRESETS = {p.name: p for p in (
            uv="per-triangle"),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
-           SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=0.0, tolerance=1e-2,
+           SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=2.0, tolerance=1e-2,
                         max_bounces=64, gather_rays=256),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,

@@ -371,7 +371,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
         for a in range(0, len(pts), BATCH):
             b = slice(a, a + BATCH)
             out[b], c, r = irradiance(light, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, c_max,
-                                      exact=exact, floor=None if floor is None else floor[b])
+                                      exact=exact, floor=None if floor is None else floor[b], analytic=True)
             cuts.append(c[ok[b]])
             rays[0] += int(r.sum())
             checkpoint()

@@ -80,7 +80,7 @@ def split_lights(lights: Lights, seed=0, tree=True) -> tuple[Lights, Lights | No
 
 
 def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offset=1e-4, epsilon=0.02, cap=1000,
-               brute=False, near=True, exact=True, floor=None, adaptive_sky=True):
+               brute=False, near=True, exact=True, floor=None, adaptive_sky=True, analytic=False):
     """H (N, 3) float64 at points with unit normals (the side that
     receives), plus cut sizes and shadow rays per point. near: area VPLs
     near a point are integrated over their patch (lightcuts.vpl_g; off:
@@ -90,7 +90,10 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     each point gets from elsewhere, which the cuts' error is bounded
     against besides their own (split_lights); adaptive_sky: the sky
     by a ray per cell of its directions where they agree
-    (lightcuts.sky_light; off: a ray along every direction)."""
+    (lightcuts.sky_light; off: a ray along every direction); analytic:
+    where the VPLs are the area emitters' alone, none of them textured and
+    at most ANALYTIC_EMITTERS triangles, their light takes the ratio form
+    (lightcuts.shade_points), exact wherever nothing blocks them."""
     points = np.ascontiguousarray(points, np.float64)
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
@@ -107,10 +110,25 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     cells = sky_cells(sky, a.sky_up, a.sky_mode == SKY_HEMISPHERE, SKY_CELL if adaptive_sky else 1)
     floor = np.zeros(len(points)) if floor is None else np.ascontiguousarray(floor, np.float64)
     patch = np.where(v.indirect & (v.kind == KIND_AREA), v.area, 0.0) if near else np.zeros(len(v))
+    analytic = bool(analytic and not brute and len(v) and analytic_emitters(surfaces)
+                    and not v.indirect.any() and (v.kind == KIND_AREA).all())
     tree = tree_arrays(t, node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
     return shade_points(bvh.arrays, surfaces.arrays, tree, VPLArrays(v.kind, v.position, v.normal, v.area, v.power,
                                                                      patch),
-                        cells, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute))
+                        cells, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute),
+                        analytic)
+
+
+ANALYTIC_EMITTERS = 2048   # emitter triangles summed exactly at each point (lightcuts.emitters_unoccluded)
+
+
+def analytic_emitters(surfaces) -> bool:
+    """Whether the emitters' unoccluded light can be summed exactly at
+    each point: at most ANALYTIC_EMITTERS triangles, none with an emissive
+    texture (the sum takes each triangle's mean radiance)."""
+    a = surfaces.arrays
+    e = a.emitters
+    return 0 < len(e) <= ANALYTIC_EMITTERS and not (a.emit_offset[a.tri_material[e]] >= 0).any()
 
 
 SKY_CELL = 8     # the sky's directions per cell of the adaptive sky (lightcuts.sky_light)

@@ -63,6 +63,34 @@ def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
     return math.atan2(sn, ax * bx + ay * by + az * bz) * (nx * cx + ny * cy + nz * cz) / sn
 
 
+@njit(cache=True, inline="always")
+def _clip_edge(qx, qy, qz, rx, ry, rz, nx, ny, nz, acc, count, fx, fy, fz, lx, ly, lz):
+    """One edge q -> r of a polygon (relative to p) clipped against p's
+    upper half-space n . x >= 0 (Sutherland-Hodgman): the vertices it
+    emits join the clipped polygon, whose Lambert sum `acc` grows by each
+    new edge; f is the polygon's first vertex, l the last emitted, count
+    how many. Returns the new (acc, count, f, l)."""
+    hq = nx * qx + ny * qy + nz * qz
+    hr = nx * rx + ny * ry + nz * rz
+    for e in range(2):
+        if e == 0:
+            if hq < 0.0:
+                continue
+            ox, oy, oz = qx, qy, qz
+        else:
+            if not (hq < 0.0) != (hr < 0.0):
+                continue
+            f = hq / (hq - hr)
+            ox, oy, oz = qx + f * (rx - qx), qy + f * (ry - qy), qz + f * (rz - qz)
+        if count == 0:
+            fx, fy, fz = ox, oy, oz
+        else:
+            acc += _edge_term(lx, ly, lz, ox, oy, oz, nx, ny, nz)
+        lx, ly, lz = ox, oy, oz
+        count += 1
+    return acc, count, fx, fy, fz, lx, ly, lz
+
+
 @njit(cache=True)
 def patch_g(vpls, v, p, n):
     """The near field of VPL v at p: the form factor from p to its patch
@@ -104,40 +132,97 @@ def patch_g(vpls, v, p, n):
         rx = cx + half * (su2 * tx + sv2 * bx)
         ry = cy + half * (su2 * ty + sv2 * by)
         rz = cz + half * (su2 * tz + sv2 * bz)
-        hq = nx * qx + ny * qy + nz * qz
-        hr = nx * rx + ny * ry + nz * rz
-        for e in range(2):
-            if e == 0:
-                if hq < 0.0:
-                    continue
-                ox, oy, oz = qx, qy, qz
-            else:
-                if not (hq < 0.0) != (hr < 0.0):
-                    continue
-                f = hq / (hq - hr)
-                ox, oy, oz = qx + f * (rx - qx), qy + f * (ry - qy), qz + f * (rz - qz)
-            if count == 0:
-                fx, fy, fz = ox, oy, oz
-            else:
-                acc += _edge_term(lx, ly, lz, ox, oy, oz, nx, ny, nz)
-            lx, ly, lz = ox, oy, oz
-            count += 1
+        acc, count, fx, fy, fz, lx, ly, lz = _clip_edge(qx, qy, qz, rx, ry, rz, nx, ny, nz, acc, count, fx, fy, fz,
+                                                        lx, ly, lz)
     if count < 3:
         return 0.0
     acc += _edge_term(lx, ly, lz, fx, fy, fz, nx, ny, nz)
     return abs(acc) / (2.0 * math.pi * vpls.patch[v])
 
 
+FAR_TRIANGLE = 16.0  # an emitter triangle farther than this x its longest edge: the point form (off < 0.2%)
+
+
+@njit(cache=True)
+def triangle_cosine(surf, tri, px, py, pz, nx, ny, nz):
+    """The integral of cos over the solid angle of scene triangle `tri`
+    seen from p (normal n), the triangle clipped to p's upper half-space
+    (Sutherland-Hodgman) and integrated by Lambert's formula,
+    |sum over its edges of angle x cos| / 2: pi times the form factor,
+    exact at any distance."""
+    acc = 0.0
+    count = 0
+    fx = fy = fz = 0.0   # the clipped polygon's first vertex, and the last one emitted
+    lx = ly = lz = 0.0
+    c = surf.corners
+    for k in range(3):
+        k2 = (k + 1) % 3
+        qx, qy, qz = c[tri, k, 0] - px, c[tri, k, 1] - py, c[tri, k, 2] - pz
+        rx, ry, rz = c[tri, k2, 0] - px, c[tri, k2, 1] - py, c[tri, k2, 2] - pz
+        acc, count, fx, fy, fz, lx, ly, lz = _clip_edge(qx, qy, qz, rx, ry, rz, nx, ny, nz, acc, count, fx, fy, fz,
+                                                        lx, ly, lz)
+    if count < 3:
+        return 0.0
+    acc += _edge_term(lx, ly, lz, fx, fy, fz, nx, ny, nz)
+    return 0.5 * abs(acc)
+
+
+@njit(cache=True)
+def emitters_unoccluded(surf, px, py, pz, nx, ny, nz):
+    """Irradiance (r, g, b) at p (normal n) from every area emitter with
+    nothing in the way: each triangle's mean radiance times its clipped
+    cosine integral (triangle_cosine), or the point form A cos_l cos_p /
+    r^2 beyond FAR_TRIANGLE x its longest edge where it lies wholly above
+    p's horizon. A one-sided emitter lights only the side its winding's
+    normal faces; a point in an emitter's plane gets nothing from it."""
+    a0 = a1 = a2 = 0.0
+    c = surf.corners
+    for e in range(surf.emitters.shape[0]):
+        t = surf.emitters[e]
+        mx, my, mz = surf.tri_normal[t, 0], surf.tri_normal[t, 1], surf.tri_normal[t, 2]
+        d = mx * (px - c[t, 0, 0]) + my * (py - c[t, 0, 1]) + mz * (pz - c[t, 0, 2])
+        e2 = 0.0
+        for k in range(3):
+            k2 = (k + 1) % 3
+            ex, ey, ez = c[t, k2, 0] - c[t, k, 0], c[t, k2, 1] - c[t, k, 1], c[t, k2, 2] - c[t, k, 2]
+            e2 = max(e2, ex * ex + ey * ey + ez * ez)
+        tiny = 1e-7 * math.sqrt(e2)
+        if surf.double_sided[surf.tri_material[t]]:
+            if abs(d) <= tiny:
+                continue
+        elif d <= tiny:
+            continue
+        hmin, hmax = np.inf, -np.inf
+        for k in range(3):
+            h = nx * (c[t, k, 0] - px) + ny * (c[t, k, 1] - py) + nz * (c[t, k, 2] - pz)
+            hmin, hmax = min(hmin, h), max(hmax, h)
+        if hmax <= 0.0:
+            continue
+        gx = (c[t, 0, 0] + c[t, 1, 0] + c[t, 2, 0]) / 3.0 - px
+        gy = (c[t, 0, 1] + c[t, 1, 1] + c[t, 2, 1]) / 3.0 - py
+        gz = (c[t, 0, 2] + c[t, 1, 2] + c[t, 2, 2]) / 3.0 - pz
+        r2 = gx * gx + gy * gy + gz * gz
+        if hmin > 0.0 and r2 > FAR_TRIANGLE * FAR_TRIANGLE * e2:
+            w = surf.tri_area[t] * abs(d) * (nx * gx + ny * gy + nz * gz) / (r2 * r2)
+        else:
+            w = triangle_cosine(surf, t, px, py, pz, nx, ny, nz)
+        a0 += surf.tri_emission[t, 0] * w
+        a1 += surf.tri_emission[t, 1] * w
+        a2 += surf.tri_emission[t, 2] * w
+    return a0, a1, a2
+
+
 @njit(cache=True, inline="always")
-def vpl_g(bvh, stack, vpls, v, p, n, offset, shadows):
+def vpl_gu(bvh, stack, vpls, v, p, n, offset, shadows):
     """The geometric factor (r, g, b) of VPL v at p, times the shadow ray's
     transmittance when `shadows` (0 where blocked, the tint of the thin
-    glass it crosses): irradiance = power(v) x g. A VPL with a patch
-    (vpls.patch[v] > 0: a voxel's area) nearer than FAR x sqrt(A) takes its
-    patch's exact form factor (patch_g), blended into the bounded point
-    form from NEAR to FAR x sqrt(A): at a concave edge the point form of
-    the next wall's voxels reads 20-45% low a quarter to half a voxel from
-    it, the patches 0.5-1% (tests/test_lights.py)."""
+    glass it crosses), and the factor without it: irradiance = power(v) x
+    g. A VPL with a patch (vpls.patch[v] > 0: a voxel's area) nearer than
+    FAR x sqrt(A) takes its patch's exact form factor (patch_g), blended
+    into the bounded point form from NEAR to FAR x sqrt(A): at a concave
+    edge the point form of the next wall's voxels reads 20-45% low a
+    quarter to half a voxel from it, the patches 0.5-1%
+    (tests/test_lights.py)."""
     px, py, pz = p
     nx, ny, nz = n
     tr, tg, tb = 1.0, 1.0, 1.0
@@ -145,33 +230,38 @@ def vpl_g(bvh, stack, vpls, v, p, n, offset, shadows):
         dx, dy, dz = vpls.normal[v, 0], vpls.normal[v, 1], vpls.normal[v, 2]
         cp = nx * dx + ny * dy + nz * dz
         if cp <= COS_MIN:
-            return 0.0, 0.0, 0.0
+            return 0.0, 0.0, 0.0, 0.0
         if shadows:
             tr, tg, tb = transmittance(bvh, stack, px + offset * nx, py + offset * ny, pz + offset * nz, dx, dy, dz,
                                        0.0, np.inf)
-        return cp * tr, cp * tg, cp * tb
+        return cp * tr, cp * tg, cp * tb, cp
     dx, dy, dz = vpls.position[v, 0] - px, vpls.position[v, 1] - py, vpls.position[v, 2] - pz
     r2 = dx * dx + dy * dy + dz * dz
     if r2 <= 0.0:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0
     r = math.sqrt(r2)
     dx, dy, dz = dx / r, dy / r, dz / r
     cp = nx * dx + ny * dy + nz * dz
     cl = -(vpls.normal[v, 0] * dx + vpls.normal[v, 1] * dy + vpls.normal[v, 2] * dz)
     if cp <= COS_MIN or cl <= COS_MIN:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0
+    g = cl * cp / (math.pi * r2 + vpls.area[v])
+    if r2 < FAR * FAR * vpls.patch[v]:   # the near field: over the VPL's patch, blended into the point form
+        w = min(1.0, (FAR - r / math.sqrt(vpls.patch[v])) / (FAR - NEAR))
+        g = w * patch_g(vpls, v, p, n) + (1.0 - w) * g
     if shadows:
         ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
         ex, ey, ez = vpls.position[v, 0] - ox, vpls.position[v, 1] - oy, vpls.position[v, 2] - oz
         d = math.sqrt(ex * ex + ey * ey + ez * ez)
         tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, ex / d, ey / d, ez / d, 0.0, d * (1.0 - SHADOW_EPS))
-        if tr <= 0.0 and tg <= 0.0 and tb <= 0.0:
-            return 0.0, 0.0, 0.0
-    g = cl * cp / (math.pi * r2 + vpls.area[v])
-    if r2 < FAR * FAR * vpls.patch[v]:   # the near field: over the VPL's patch, blended into the point form
-        w = min(1.0, (FAR - r / math.sqrt(vpls.patch[v])) / (FAR - NEAR))
-        g = w * patch_g(vpls, v, p, n) + (1.0 - w) * g
-    return g * tr, g * tg, g * tb
+    return g * tr, g * tg, g * tb, g
+
+
+@njit(cache=True, inline="always")
+def vpl_g(bvh, stack, vpls, v, p, n, offset, shadows):
+    """vpl_gu's factor (r, g, b), with the shadow ray when `shadows`."""
+    g0, g1, g2, _ = vpl_gu(bvh, stack, vpls, v, p, n, offset, shadows)
+    return g0, g1, g2
 
 
 @njit(cache=True, inline="always")
@@ -273,7 +363,7 @@ def node_bound(tree, node, p, n):
 def _swap(heap_b, heap_n, heap_g, i, j):
     heap_b[i], heap_b[j] = heap_b[j], heap_b[i]
     heap_n[i], heap_n[j] = heap_n[j], heap_n[i]
-    for c in range(3):
+    for c in range(4):
         heap_g[i, c], heap_g[j, c] = heap_g[j, c], heap_g[i, c]
 
 
@@ -281,7 +371,7 @@ def _swap(heap_b, heap_n, heap_g, i, j):
 def _push(heap_b, heap_n, heap_g, size, b, node, g):
     i = size
     heap_b[i], heap_n[i] = b, node
-    heap_g[i, 0], heap_g[i, 1], heap_g[i, 2] = g
+    heap_g[i, 0], heap_g[i, 1], heap_g[i, 2], heap_g[i, 3] = g
     while i > 0:
         p = (i - 1) // 2
         if heap_b[p] >= heap_b[i]:
@@ -293,7 +383,7 @@ def _push(heap_b, heap_n, heap_g, size, b, node, g):
 
 @njit(cache=True)
 def _pop(heap_b, heap_n, heap_g, size):
-    node, g = heap_n[0], (heap_g[0, 0], heap_g[0, 1], heap_g[0, 2])
+    node, g = heap_n[0], (heap_g[0, 0], heap_g[0, 1], heap_g[0, 2], heap_g[0, 3])
     size -= 1
     _swap(heap_b, heap_n, heap_g, 0, size)
     i = 0
@@ -312,23 +402,24 @@ def _pop(heap_b, heap_n, heap_g, size):
 
 def scratch(cap):
     """Per-thread scratch of a lightcut: a heap of at most cap + 2 nodes."""
-    return np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 3))
+    return np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 4))
 
 
 @njit(cache=True)
 def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0):
-    """Irradiance (r, g, b) at p by a lightcut, the cut's size and the
-    shadow rays cast. p, n: the point and its unit normal (3-tuples);
-    heap: scratch (bound, node, g) of cap + 2 entries each (the cut's
-    refinable nodes with their bound and representative's g, 3 channels:
-    the tint of glass on its shadow ray); floor: the luminance of the
-    irradiance p gets from elsewhere (the sky, punctual lights): the cut's
-    error is bounded relative to the whole."""
+    """Irradiance (r, g, b) at p by a lightcut, the same cut's estimate
+    without shadow rays (r, g, b), the cut's size and the shadow rays
+    cast. p, n: the point and its unit normal (3-tuples); heap: scratch
+    (bound, node, g) of cap + 2 entries each (the cut's refinable nodes
+    with their bound and representative's g: 3 channels with the shadow
+    ray, the tint of glass on it, and one without); floor: the luminance
+    of the irradiance p gets from elsewhere (the sky, punctual lights):
+    the cut's error is bounded relative to the whole."""
     # borrowed: the records' arrays read in the loop take no reference counts (kernels/inline.py)
     bvh, stack, tree, vpls = borrowed(bvh), borrowed(stack), borrowed(tree), borrowed(vpls)
     heap_b, heap_n, heap_g = borrowed(heap)
     root = 0
-    g = vpl_g(bvh, stack, vpls, tree.rep[root], p, n, offset, True)
+    g = vpl_gu(bvh, stack, vpls, tree.rep[root], p, n, offset, True)
     rays = 1
     e0 = tree.power[root, 0] * g[0]
     e1 = tree.power[root, 1] * g[1]
@@ -336,6 +427,7 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0
     size = 0
     cut = 1
     f0 = f1 = f2 = 0.0  # the cut's nodes that are final (leaves, nodes that cannot light p), summed once
+    u0 = u1 = u2 = 0.0  # the same without shadow rays
     b = 0.0
     if tree.right[root] >= 0:
         b = node_bound(tree, root, p, n)
@@ -343,6 +435,7 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0
         size = _push(heap_b, heap_n, heap_g, size, b, root, g)
     else:
         f0, f1, f2 = e0, e1, e2
+        u0, u1, u2 = tree.power[root, 0] * g[3], tree.power[root, 1] * g[3], tree.power[root, 2] * g[3]
     while size > 0:
         est = LUM_R * e0 + LUM_G * e1 + LUM_B * e2
         if heap_b[0] <= epsilon * (est + floor) or cut >= cap:
@@ -356,7 +449,7 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0
             if tree.rep[child] == tree.rep[node]:
                 gc = g
             else:
-                gc = vpl_g(bvh, stack, vpls, tree.rep[child], p, n, offset, True)
+                gc = vpl_gu(bvh, stack, vpls, tree.rep[child], p, n, offset, True)
                 rays += 1
             e0 += tree.power[child, 0] * gc[0]
             e1 += tree.power[child, 1] * gc[1]
@@ -371,13 +464,19 @@ def lightcut(bvh, stack, tree, vpls, p, n, offset, epsilon, cap, heap, floor=0.0
                 f0 += tree.power[child, 0] * gc[0]
                 f1 += tree.power[child, 1] * gc[1]
                 f2 += tree.power[child, 2] * gc[2]
+                u0 += tree.power[child, 0] * gc[3]
+                u1 += tree.power[child, 1] * gc[3]
+                u2 += tree.power[child, 2] * gc[3]
     # the result summed afresh over the cut (the running estimate above subtracts: rounding would leave 1e-31
     # where every term is 0, and a dark room must stay exactly black)
     for i in range(size):
         f0 += tree.power[heap_n[i], 0] * heap_g[i, 0]
         f1 += tree.power[heap_n[i], 1] * heap_g[i, 1]
         f2 += tree.power[heap_n[i], 2] * heap_g[i, 2]
-    return f0, f1, f2, cut, rays
+        u0 += tree.power[heap_n[i], 0] * heap_g[i, 3]
+        u1 += tree.power[heap_n[i], 1] * heap_g[i, 3]
+        u2 += tree.power[heap_n[i], 2] * heap_g[i, 3]
+    return f0, f1, f2, u0, u1, u2, cut, rays
 
 
 @njit(cache=True)
@@ -497,12 +596,19 @@ CHUNK = 64  # shading points per parallel work item
 
 
 @njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, offset, epsilon, cap, brute):
+def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, offset, epsilon, cap, brute,
+                 analytic=False):
     """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
     (where valid): lightcuts over the tree (TreeArrays) of the VPLs
     (VPLArrays; brute: every VPL) plus the scene's punctual lights, exact,
     and the sky along its directions (SkyCells, sky_light; none: the
-    sky, if any, is among the VPLs); cut size (N,) and shadow rays (N,)."""
+    sky, if any, is among the VPLs); cut size (N,) and shadow rays (N,).
+    analytic (the VPLs are the area emitters' alone, of uniform
+    emission): the ratio form E = A S / U, A the emitters' exact
+    unoccluded irradiance (emitters_unoccluded), S and U the cut's
+    estimate with and without shadow rays: exact wherever nothing blocks
+    the emitters (a concave edge beside a lamp, where the VPLs' point
+    form reads up to 45% low), and the cut's own error cancels."""
     n = points.shape[0]
     out = np.zeros((n, 3))
     cuts = np.zeros(n, np.int64)
@@ -510,7 +616,7 @@ def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, o
     n_lights = surf.light_kind.shape[0]
     for ch in prange((n + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 3)))
+        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 4)))
         seen = np.empty((cells.start.shape[0], 4))
         for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
             if not valid[k]:
@@ -537,10 +643,15 @@ def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, o
                     rays[k] += vpls.kind.shape[0]
                 else:
                     floor = LUM_R * h0 + LUM_G * h1 + LUM_B * h2 + floors[k]
-                    c0, c1, c2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz), offset, epsilon,
-                                                cap, heap, floor)
+                    c0, c1, c2, u0, u1, u2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz),
+                                                            offset, epsilon, cap, heap, floor)
                     cuts[k] = c
                     rays[k] += r
+                    if analytic:
+                        a0, a1, a2 = emitters_unoccluded(surf, px, py, pz, nx, ny, nz)
+                        c0 = a0 * c0 / u0 if u0 > 0.0 else 0.0
+                        c1 = a1 * c1 / u1 if u1 > 0.0 else 0.0
+                        c2 = a2 * c2 / u2 if u2 > 0.0 else 0.0
                 h0 += c0
                 h1 += c1
                 h2 += c2

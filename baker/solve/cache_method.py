@@ -76,21 +76,27 @@ def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=N
     pools its photons with the neighbours on its surface that agree with
     it within k standard deviations of the photon noise
     (solve/smoothing.py: smooth_photons; bvh: the scene's, to see that nothing
-    stands between them). Otherwise a voxel under a quarter cell
-    takes the pooled estimate (P + P_parent) / (A + A_parent) of itself and
-    its largest neighbour on the same surface (photon noise scales as
-    1 / sqrt(area): slivers would be spikes)."""
-    if smoothing > 0 and photon_lum > 0 and bvh is not None:
-        return smooth_photons(bvh.arrays, vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims, vox.cell_size,
-                              np.ascontiguousarray(deposited, np.float64), float(photon_lum), float(smoothing),
-                              vox.cut_plane, vox.cut_sign, vox.origin)
-    h1 = deposited / vox.area[:, None]
+    stands between them). Then a voxel under a quarter cell takes the
+    pooled estimate (P + P_parent) / (A + A_parent) of itself and its
+    largest neighbour on the same surface (photon noise scales as
+    1 / sqrt(area): slivers would be spikes), P_parent the parent's
+    smoothed estimate times its area where smoothing is on."""
+    smoothed = smoothing > 0 and photon_lum > 0 and bvh is not None
+    if smoothed:
+        h1 = smooth_photons(bvh.arrays, vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
+                            vox.cell_size, np.ascontiguousarray(deposited, np.float64), float(photon_lum),
+                            float(smoothing), vox.cut_plane, vox.cut_sign, vox.origin)
+    else:
+        h1 = deposited / vox.area[:, None]
     parent = pool_parents(vox.key, vox.cell, vox.centroid, vox.normal, vox.area, vox.dims,
                           vox.cell_size, MIN_POOL_AREA * vox.cell_size ** 2, vox.cut_plane, vox.cut_sign, vox.origin)
     tiny = np.nonzero(parent >= 0)[0]
     if len(tiny):
+        # smoothed, a sliver's few photons may disagree with every neighbour by more than the test allows (a
+        # 0.01-cell^2 corner piece of the furnace sphere read 0.87): it pools with its parent's smoothed estimate
         p = parent[tiny]
-        h1[tiny] = (deposited[tiny] + deposited[p]) / (vox.area[tiny] + vox.area[p])[:, None]
+        parent_power = (h1[p] * vox.area[p][:, None]) if smoothed else deposited[p]
+        h1[tiny] = (deposited[tiny] + parent_power) / (vox.area[tiny] + vox.area[p])[:, None]
     return h1
 
 
@@ -143,10 +149,11 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
             sweeper = None if gathered else LineSweeper(vox)
             release_freed_memory()
             cache = {}
+            targets = {}   # the gather's rays' voxels, once the bounces' rays stop changing (gather_voxels)
             for k, r in enumerate(radii, start=2):
                 if gathered:
                     g = rays_for_bounce(config.gather_rays, k)
-                    hk = gather_voxels(prepared, vox, current, g)
+                    hk = gather_voxels(prepared, vox, current, g, targets)
                     gather_rays += n * g
                     per_bounce.append(g)
                 else:
