@@ -83,3 +83,27 @@ def test_gather_does_not_depend_on_the_thread_count(make_scene):
         numba.set_num_threads(before)
     assert np.array_equal(one, many) and one.min() > 0
 
+
+
+@pytest.mark.parametrize("glass", [False, True])
+def test_recorded_rays_read_what_traced_rays_read(make_scene, glass):
+    """The solver's bounces at the floor's ray count cast the same rays
+    each time, so gather_voxels records the voxel each ray reads once and
+    reads those at later bounces (voxels with a ray through glass are
+    traced afresh): the same bits as tracing at every bounce, for any
+    radiosity, the pane's tint included."""
+    from baker.solve.gather import GATHER_FLOOR, gather_voxels
+    prep, sol = _lit_ceiling(make_scene, glass)
+    rng = np.random.default_rng(2)
+    targets = {}
+    for _ in range(3):
+        b = rng.uniform(0, 2, (len(sol.voxels), 3))
+        traced = gather_voxels(prep, sol.voxels, b, GATHER_FLOOR)
+        read = gather_voxels(prep, sol.voxels, b, GATHER_FLOOR, targets)
+        np.testing.assert_array_equal(read, traced)
+        assert traced.max() > 0
+    target, live = targets[GATHER_FLOOR]
+    if glass:   # the pane spans the room: every voxel sees it
+        assert len(live) > 100
+    else:
+        assert len(live) == 0 and (target >= 0).mean() > 0.5

@@ -106,6 +106,33 @@ def _voxel_origin(bvh, stack, double, mat_of, planar, cx, cy, cz, nx, ny, nz, li
     return cx + (base + lift) * nx, cy + (base + lift) * ny, cz + (base + lift) * nz
 
 
+GAP_STOP = -2   # _read_at: the ray met a voxel facing it across a gap thinner than VOXEL_GAP, and stops
+
+
+@njit(cache=True, inline="always")
+def _read_at(bvh, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, gap, nx, ny, nz, ox, oy, oz, dx, dy, dz,
+             t, j):
+    """The voxel a gather ray (from o along d, its point's normal n) that
+    hit BVH triangle j at t reads: -1 none (the back of a one-sided
+    surface, a voxel facing away, a cut voxel that does not see the hit),
+    GAP_STOP where it must stop there (see VOXEL_GAP)."""
+    hx, hy, hz = hit_normal(bvh, j)
+    tri = bvh.tri_index[j]
+    back = hx * dx + hy * dy + hz * dz > 0.0
+    if back and not double[mat_of[tri]]:
+        return -1
+    px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+    vi = voxel_of_hit(tri, back, px, py, pz, pieces)
+    if vi < 0:
+        return -1
+    if t < gap and vnormal[vi, 0] * nx + vnormal[vi, 1] * ny + vnormal[vi, 2] * nz < SHEET_BACK_COS:
+        return GAP_STOP
+    if vnormal[vi, 0] * dx + vnormal[vi, 1] * dy + vnormal[vi, 2] * dz < 0.0 \
+            and (vcut[vi] == 0 or _sees(bvh, stack, vnormal, vcentroid, vi, px, py, pz, dx, dy, dz, pieces.h)):
+        return vi
+    return -1
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def gather_kernel(bvh, double, mat_of, b_ind, vnormal, vcentroid, vcut, vplanar, pieces, points, normals, own, offset,
                   gap, local, out):
@@ -139,21 +166,14 @@ def gather_kernel(bvh, double, mat_of, b_ind, vnormal, vcentroid, vcut, vplanar,
                 t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
                 if j < 0:   # the sky's light is the sky's cut's (lights.sky_light)
                     break
-                hx, hy, hz = hit_normal(bvh, j)
-                tri = bvh.tri_index[j]
-                back = hx * dx + hy * dy + hz * dz > 0.0
-                px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-                if not back or double[mat_of[tri]]:
-                    vi = voxel_of_hit(tri, back, px, py, pz, pieces)
-                    if vi >= 0 and t < gap and \
-                            vnormal[vi, 0] * nx + vnormal[vi, 1] * ny + vnormal[vi, 2] * nz < SHEET_BACK_COS:
-                        break
-                    if vi >= 0 and vnormal[vi, 0] * dx + vnormal[vi, 1] * dy + vnormal[vi, 2] * dz < 0.0 \
-                            and (vcut[vi] == 0 or _sees(bvh, stack, vnormal, vcentroid, vi, px, py, pz, dx, dy, dz,
-                                                        pieces.h)):
-                        a0 += w0 * b_ind[vi, 0]
-                        a1 += w1 * b_ind[vi, 1]
-                        a2 += w2 * b_ind[vi, 2]
+                vi = _read_at(bvh, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, gap, nx, ny, nz, ox, oy,
+                              oz, dx, dy, dz, t, j)
+                if vi == GAP_STOP:
+                    break
+                if vi >= 0:
+                    a0 += w0 * b_ind[vi, 0]
+                    a1 += w1 * b_ind[vi, 1]
+                    a2 += w2 * b_ind[vi, 2]
                 if bvh.tri_pass[j] != PASS_GLASS:
                     break
                 g = bvh.glass_tint[bvh.tri_mat[j]]
@@ -161,7 +181,7 @@ def gather_kernel(bvh, double, mat_of, b_ind, vnormal, vcentroid, vcut, vplanar,
                 if w0 <= 0.0 and w1 <= 0.0 and w2 <= 0.0:
                     break
                 step = 1e-6 * max(1.0, t)   # past the pane, not onto it again
-                ox, oy, oz = px + step * dx, py + step * dy, pz + step * dz
+                ox, oy, oz = ox + t * dx + step * dx, oy + t * dy + step * dy, oz + t * dz + step * dz
         out[i, 0] = a0 / k_n
         out[i, 1] = a1 / k_n
         out[i, 2] = a2 / k_n
@@ -175,20 +195,94 @@ def rays_for_bounce(rays: int, k: int) -> int:
     return max(min(rays, GATHER_FLOOR), rays >> min(k - 2, 30))
 
 
-def gather_voxels(prepared, vox, radiosity, rays) -> np.ndarray:
+def gather_voxels(prepared, vox, radiosity, rays, cache=None) -> np.ndarray:
     """(n, 3) float64: the irradiance at each voxel (its centroid, lifted
     VOXEL_LIFT cells along its normal) gathered by `rays` rays from the
-    voxels' radiosity (n, 3)."""
+    voxels' radiosity (n, 3). cache: a dict kept across bounces; the
+    bounces that take GATHER_FLOOR rays (all but the first two) cast the
+    same rays from the same points, so the first of them records the
+    voxel each ray reads (GatherTargets) and the others only read them."""
     a = prepared.surfaces.arrays
     out = np.zeros((len(vox), 3))
-    if len(vox):
-        normal = np.ascontiguousarray(vox.normal, np.float64)
-        centroid = np.ascontiguousarray(vox.centroid, np.float64)
-        gather_kernel(prepared.bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(radiosity, np.float64),
-                      normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid, normal,
+    if not len(vox):
+        return out
+    normal = np.ascontiguousarray(vox.normal, np.float64)
+    centroid = np.ascontiguousarray(vox.centroid, np.float64)
+    radiosity = np.ascontiguousarray(radiosity, np.float64)
+    args = (prepared.bvh.arrays, a.double_sided, a.tri_material)
+    local = gather_directions(int(rays))
+    if cache is None or int(rays) > GATHER_FLOOR:
+        gather_kernel(*args, radiosity, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid, normal,
                       np.arange(len(vox), dtype=np.int64), VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size,
-                      gather_directions(int(rays)), out)
+                      local, out)
+        return out
+    if int(rays) not in cache:
+        target = np.empty((len(vox), len(local)), np.int32)
+        live = np.zeros(len(vox), bool)
+        gather_targets(*args, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), np.arange(len(vox)),
+                       VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size, local, target, live)
+        cache[int(rays)] = (target, np.nonzero(live)[0])
+    target, live = cache[int(rays)]
+    gather_read(target, radiosity, out)
+    if len(live):   # voxels with a ray through glass: traced afresh (their rays read several voxels, tinted)
+        sub = np.zeros((len(live), 3))
+        gather_kernel(*args, radiosity, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid[live],
+                      normal[live], live.astype(np.int64), VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size,
+                      local, sub)
+        out[live] = sub
     return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def gather_targets(bvh, double, mat_of, vnormal, vcentroid, vcut, vplanar, pieces, own, offset, gap, local, target,
+                   live):
+    """What gather_kernel's rays from the voxels `own` read, without
+    reading it: target[i, k] the voxel ray k of own[i] reads (-1: none);
+    live[i] where one of its rays meets glass first (it reads the pane
+    and goes on, tinted: gather_kernel traces it at each bounce). The
+    same rays and tests as gather_kernel (_read_at)."""
+    n = len(own)
+    k_n = len(local)
+    for i in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
+        vo = own[i]
+        nx, ny, nz = vnormal[vo, 0], vnormal[vo, 1], vnormal[vo, 2]
+        tx, ty, tz, bx, by, bz = _frame(nx, ny, nz)
+        ox, oy, oz = _voxel_origin(bvh, stack, double, mat_of, vplanar[vo], vcentroid[vo, 0], vcentroid[vo, 1],
+                                   vcentroid[vo, 2], nx, ny, nz, offset)
+        for k in range(k_n):
+            target[i, k] = -1
+        for k in range(k_n):
+            lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
+            dx = lx * tx + ly * bx + lz * nx
+            dy = lx * ty + ly * by + lz * ny
+            dz = lx * tz + ly * bz + lz * nz
+            t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+            if j < 0:
+                continue
+            if bvh.tri_pass[j] == PASS_GLASS:
+                live[i] = True
+                break
+            target[i, k] = max(-1, _read_at(bvh, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, gap, nx,
+                                            ny, nz, ox, oy, oz, dx, dy, dz, t, j))
+
+
+@njit(cache=True, parallel=True)
+def gather_read(target, b, out):
+    """out[i] = the mean over k of b[target[i, k]] (-1: 0), summed in k's
+    order as gather_kernel sums (the same bits)."""
+    k_n = target.shape[1]
+    for i in prange(target.shape[0]):
+        a0 = a1 = a2 = 0.0
+        for k in range(k_n):
+            vi = target[i, k]
+            if vi >= 0:
+                a0 += 1.0 * b[vi, 0]
+                a1 += 1.0 * b[vi, 1]
+                a2 += 1.0 * b[vi, 2]
+        out[i, 0] = a0 / k_n
+        out[i, 1] = a1 / k_n
+        out[i, 2] = a2 / k_n
 
 
 def gather_bounced(prepared, solution, points, normals, offset, rays) -> np.ndarray:
