@@ -71,7 +71,7 @@ PRESETS = {p.name: p for p in (
                         max_bounces=64, gather_rays=256),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
-           texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=400,
+           texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=200,
            texel_gather_spacing=1.0, texels_across=64),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
