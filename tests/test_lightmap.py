@@ -8,7 +8,7 @@ from scipy.ndimage import distance_transform_cdt
 
 from baker.lightmap import PAGE, build_atlas, pack_quadtree, per_triangle_charts
 from baker.lightmap.charts import BORDER, MAX_SIZE, MIN_SIZE
-from baker.lightmap.texels import FILL_DISTANCE, fill, texel_points
+from baker.lightmap.texels import FILL_DISTANCE, fill, open_edges, texel_points
 
 POW2 = [8, 16, 32, 64, 128, 256, 512]
 
@@ -70,7 +70,7 @@ def test_texel_points_lie_on_their_triangle():
     rng = np.random.default_rng(2)
     corners = rng.uniform(0, 4, (50, 3, 3))
     ch = per_triangle_charts(corners, np.zeros(50, bool), 0.25)
-    pts, covered = texel_points(corners, ch.tri, ch.corners2d, ch.size, ch.offsets)
+    pts, covered = texel_points(corners, ch.tri, ch.corners2d, ch.size, ch.offsets, 0.0, open_edges(corners))
     off = ch.offsets
     for c in range(len(ch)):
         t = corners[ch.tri[c]]
@@ -160,33 +160,103 @@ def test_atlas_pages_hold_each_map_where_its_uvs_point():
     assert (maps.page_scale >= maps.pages.reshape(len(maps.pages), -1).max(axis=1) * 0.999).all()
 
 
-def test_texel_points_inside_their_triangle_stay_at_their_centre():
-    """A texel whose centre lies inside its triangle samples the centre
-    (moved only the 1e-4 nudge towards the centroid), whatever the
-    rounding of the nearest-point search; only centres outside the triangle
-    are clamped onto it and moved INSET texels inward. (Taking any nonzero
-    rounding residue for 'outside' once moved ~40% of the inside texels
-    half a texel towards the centroid.)"""
+def _nearest_on_triangle_2d(p, q):
+    """Nearest points (n, 2) of the 2D triangle q (3, 2) to points p (n, 2):
+    p itself inside, else the nearest of the three edges' nearest points."""
+    best = np.full(len(p), np.inf)
+    out = p.copy()
+    m = np.array([q[1] - q[0], q[2] - q[0]]).T
+    b = np.linalg.solve(m, (p - q[0]).T).T
+    inside = (b.min(axis=1) >= 0) & (b.sum(axis=1) <= 1)
+    for e in range(3):
+        a, c = q[e], q[(e + 1) % 3]
+        t = np.clip(((p - a) @ (c - a)) / ((c - a) @ (c - a)), 0, 1)
+        x = a + t[:, None] * (c - a)
+        d = np.linalg.norm(p - x, axis=1)
+        take = ~inside & (d < best)
+        out[take], best[take] = x[take], d[take]
+    return out
+
+
+def test_texel_points_keep_their_centre_or_move_straight_in_from_an_open_edge():
+    """A texel samples the point nearest its centre of its triangle with
+    the open edges moved INSET texels in (at most half the inradius), then
+    the 1e-4 nudge towards the centroid: a centre well inside is sampled
+    there, whatever the rounding of the nearest-point search (a nonzero
+    residue once moved ~40% of the inside texels half a texel towards the
+    centroid); a centre on an open edge (every texel along an edge of a
+    per-triangle map, whose corners sit on texel centres) or beyond it
+    moves straight in from that edge, even in a sliver a texel wide (a
+    move towards the centroid would slide it along the sliver and leave it
+    on the edge, where a moulding meets the ceiling and its rays start on
+    the ceiling's plane). Across the diagonal of a quad (two coplanar
+    triangles sharing the edge) points stay where they are."""
     from baker.lightmap.texels import INSET, NUDGE
     rng = np.random.default_rng(5)
-    corners = rng.uniform(0, 4, (40, 3, 3))
-    ch = per_triangle_charts(corners, np.zeros(40, bool), 0.05)
-    pts, covered = texel_points(corners, ch.tri, ch.corners2d, ch.size, ch.offsets, INSET)
-    checked = 0
+    corners = rng.uniform(0, 4, (42, 3, 3))
+    corners[0] = [[0, 0, 0], [3, 0, 0], [3, 0.06, 0]]          # a sliver about one texel wide
+    corners[40] = [[5, 0, 0], [7, 0, 0], [7, 0, 2]]            # a quad: its diagonal (5,0,0)-(7,0,2) is shared
+    corners[41] = [[5, 0, 0], [7, 0, 2], [5, 0, 2]]
+    edges = open_edges(corners)
+    assert not edges[40, 1] and not edges[41, 2] and edges[40, [0, 2]].all() and edges[41, [0, 1]].all()
+    assert edges[:40].all()
+    ch = per_triangle_charts(corners, np.zeros(42, bool), 0.05)
+    pts, covered = texel_points(corners, ch.tri, ch.corners2d, ch.size, ch.offsets, INSET, edges)
+    checked = moved = on_diagonal = 0
     for c in range(len(ch)):
-        t, s, q = corners[ch.tri[c]], int(ch.size[c]), ch.corners2d[c]
+        t, s, q = corners[ch.tri[c]], int(ch.size[c]), ch.corners2d[c].astype(np.float64)
         i, j = np.meshgrid(np.arange(s), np.arange(s))
         cen2 = np.stack([i.ravel() + 0.5, j.ravel() + 0.5], axis=1)
+        per = sum(np.linalg.norm(q[(e + 1) % 3] - q[(e + 2) % 3]) for e in range(3))
+        e1, e2 = q[1] - q[0], q[2] - q[0]
+        shrink = min(INSET, abs(e1[0] * e2[1] - e1[1] * e2[0]) / per / 2)
+        # the open edges' lines moved in; the moved triangle's corners where they cross
+        lines = []
+        for e in range(3):
+            a, d = q[(e + 1) % 3], q[(e + 2) % 3]
+            n = np.array([d[1] - a[1], a[0] - d[0]]) / np.linalg.norm(d - a)
+            n = n if (q[e] - a) @ n > 0 else -n
+            lines.append((n, n @ a + (shrink if edges[ch.tri[c], e] else 0.0)))
+        small = np.array([np.linalg.solve(np.array([lines[(v + 1) % 3][0], lines[(v + 2) % 3][0]]),
+                                          [lines[(v + 1) % 3][1], lines[(v + 2) % 3][1]]) for v in range(3)])
+        want2 = _nearest_on_triangle_2d(_nearest_on_triangle_2d(cen2, q), small)
         m = np.array([q[1] - q[0], q[2] - q[0]]).T
-        b = np.linalg.solve(m, (cen2 - q[0]).T).T
-        bary = np.column_stack([1 - b.sum(axis=1), b])
-        inside = bary.min(axis=1) > 1e-3
-        cen3 = bary @ t
-        want = cen3 + NUDGE * (t.mean(axis=0) - cen3)
+        b = np.linalg.solve(m, (want2 - q[0]).T).T
+        want = np.column_stack([1 - b.sum(axis=1), b]) @ t
+        want += NUDGE * (t.mean(axis=0) - want)
         got = pts[ch.offsets[c]:ch.offsets[c + 1]]
-        assert np.abs(got[inside] - want[inside]).max() < 1e-9, c
-        checked += inside.sum()
-    assert checked > 10_000
+        cov = covered[ch.offsets[c]:ch.offsets[c + 1]]
+        assert np.abs(got[cov] - want[cov]).max() < 1e-9, c
+        for e, (n, h) in enumerate(lines):   # in from every open edge by `shrink`
+            assert (want2[cov] @ n - h).min() > -1e-9
+        moved += (np.linalg.norm(want2 - cen2, axis=1)[cov] > 1e-9).sum()
+        if ch.tri[c] >= 40:   # texel centres on the quad's diagonal keep their place
+            d = lines[1 if ch.tri[c] == 40 else 2]
+            clear = np.all([cen2 @ n - h > 1e-9 for e, (n, h) in enumerate(lines) if edges[ch.tri[c], e]], axis=0)
+            on = cov & (np.abs(cen2 @ d[0] - d[1]) < 1e-9) & clear   # on it, clear of the open edges
+            on_diagonal += on.sum()
+            assert np.abs(want2[on] - cen2[on]).max(initial=0) < 1e-9
+        checked += cov.sum()
+    assert checked > 10_000 and moved > 1_000 and on_diagonal > 10
+    sliver = pts[ch.offsets[0]:ch.offsets[1]][covered[ch.offsets[0]:ch.offsets[1]]]
+    assert sliver[:, 1].min() > 0.1 * 0.06 and sliver[:, 1].max() < 0.9 * 0.06
+
+
+def test_open_edges_find_where_the_surface_stops():
+    """An edge is open unless exactly one other triangle shares it (same
+    endpoints, either order) with the same winding normal: a quad's
+    diagonal is closed; a fold (a crease), an edge three triangles share
+    and an edge whose neighbour's endpoint differs (a T-junction) are open."""
+    quad = [[[0, 0, 0], [1, 0, 0], [1, 1, 0]], [[0, 0, 0], [1, 1, 0], [0, 1, 0]]]
+    fold = [[[0, 0, 0], [1, 0, 0], [1, 1, 0]], [[0, 0, 0], [1, 1, 0], [0, 1, 1]]]
+    three = quad + [[[1, 1, 0], [0, 0, 0], [0.5, 0.5, 1]]]
+    tee = [[[0, 0, 0], [2, 0, 0], [1, 1, 0]], [[0, 0, 0], [1, 0, 0], [1, -1, 0]]]
+    e = open_edges(np.array(quad, float))
+    assert e.tolist() == [[True, False, True], [True, True, False]]
+    assert open_edges(np.array(fold, float)).all()
+    assert open_edges(np.array(three, float)).all()
+    assert open_edges(np.array(tee, float)).all()
+    assert open_edges(np.zeros((0, 3, 3))).shape == (0, 3)
 
 
 def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
@@ -195,7 +265,9 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     or four (diagonal) known texels that agree within the contrast takes
     their mean; one whose neighbours differ by more, or that misses one (off
     the map, or not known), or lies beyond `reach`, or faces another way,
-    is left for shading."""
+    or whose neighbours' points' mean is more than `shift` from its own
+    point (a neighbour's point kept in from an open edge), is left for
+    shading."""
     from baker.lightmap.texels import between_lattice
     s = 8
     i, j = np.meshgrid(np.arange(s), np.arange(s))          # texel k = j * s + i
@@ -211,16 +283,18 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     point[(j == 7) & (i == 3)] = [5.0, 5.0, 5.0]             # far from its neighbours: another surface
     normal = np.tile([0.0, 0.0, 1.0], (s * s, 1))
     normal[(j == 1) & (i == 3)] = [0.0, 0.0, -1.0]           # facing away: the other face of a thin wall
+    point[(j == 6) & (i == 2)] += [0.0, 0.05, 0.0]           # moved half a texel: its neighbours' means move by
+    #                                                          0.025 (row), 0.0125 (diagonal)
     v = values.copy()
     got = between_lattice(v, np.nan_to_num(lum), known, target, point, normal, np.array([0]), np.array([s]), 0.5,
-                          0.1, 1)
+                          0.1, 1, np.array([0.02]))
     want = np.zeros(s * s, bool)
     for k in np.nonzero(target)[0]:
         di, dj = i[k] % 2, j[k] % 2
         nb = [(i[k] + a * di) + (j[k] + b * dj) * s for a in (-1, 1) for b in (-1, 1)]
         if min(i[k] - di, j[k] - dj) < 0 or max(i[k] + di, j[k] + dj) >= s or not known[nb].all():
             continue
-        if k in (7 * s + 3, 1 * s + 3) or np.ptp(lum[nb]) > 0.1 * lum[nb].max():
+        if k in (7 * s + 3, 1 * s + 3, 5 * s + 2, 6 * s + 1, 6 * s + 3) or np.ptp(lum[nb]) > 0.1 * lum[nb].max():
             continue
         want[k] = True
         assert np.allclose(v[k], values[nb].mean(axis=0), rtol=1e-12)
@@ -231,6 +305,8 @@ def test_adaptive_shading_interpolates_only_between_agreeing_lattice_texels():
     assert not got[(i == s - 1) | (j == s - 1)].any()
     # a bright texel's neighbours are shaded, not interpolated
     assert not got[(j == 4) & (i == 5)].any() and not got[(j == 3) & (i == 5)].any()
+    # beside the moved point in its row or column, no; diagonally (its mean 0.0125 off), yes
+    assert not got[[5 * s + 2, 6 * s + 1, 6 * s + 3]].any() and got[5 * s + 1] and got[5 * s + 3]
 
 
 def _floor_map(tmp_path, wall=False, n=9):

@@ -79,12 +79,14 @@ class Charts:
         map is constant), and three corner points would triple the cost."""
         return self.subtexel & (self.span <= CENTROID_SPAN)
 
-    def sample(self, corners, inset=0.0, bvh=None, lift=0.0):
+    def sample(self, corners, inset=0.0, bvh=None, lift=0.0, open_edge=None):
         """The Layout protocol's texel points (lightmap/values.py: sample_points)."""
-        from .texels import onto_coplanar, texel_points
+        from .texels import onto_coplanar, open_edges, texel_points
         off = self.offsets
         size = self.size.astype(np.int64)
-        point, covered = texel_points(corners, self.tri, self.corners2d, self.size, off, float(inset))
+        if open_edge is None:
+            open_edge = open_edges(corners)
+        point, covered = texel_points(corners, self.tri, self.corners2d, self.size, off, float(inset), open_edge)
         if bvh is not None:
             onto_coplanar(bvh.arrays, corners, self.tri, self.back, self.axis, self.origin, self.texel,
                           self.size, off, point, covered, float(lift))

@@ -3,10 +3,9 @@ inside geometry, and how empty texels are filled (docs/design.md section 8).
 
 - Sample points: texel (i, j) of a chart has its centre at (i + 0.5,
   j + 0.5) in the chart's texel units; its sample point is the point of the
-  triangle nearest to that centre (the centre itself when it lies inside),
-  nudged a hair towards the triangle's centroid so that it is never exactly
-  on an edge, and half a texel inward when the centre lay outside
-  (`inset`). A texel is *covered* when its centre lies within COVER
+  triangle shrunk by INSET texels (at most half its inradius) nearest to
+  that centre: the centre itself well inside, moved straight in from the
+  edge where the centre lies on or near an edge or beyond it (`inset`). A texel is *covered* when its centre lies within COVER
   texels of the triangle: those are the texels a bilinear lookup anywhere
   on the triangle reads (a lookup at x reads the centres within Chebyshev
   distance 1 of x, hence within Euclidean distance sqrt 2 < COVER).
@@ -41,7 +40,7 @@ COVER = 1.5           # texels: centres this near the triangle are sampled
 OUTSIDE = 1e-6        # texels: a centre farther than this from its triangle lies outside it (inside, the nearest
 #                       point is the centre itself up to rounding, ~1e-15)
 NUDGE = 1e-4          # fraction of the way towards the centroid a sample point moves
-INSET = 0.5           # texels: a point clamped onto an edge moves this far inward
+INSET = 0.5           # texels: sample points keep this far in from every edge (at most half the inradius)
 FILL_DISTANCE = 4     # city-block: texels nearer than this to a filled one are filled
 SAME_FACING = 0.9     # adaptive shading interpolates only between texels whose normals' cosine is at least this
 PROBES = 16           # rays per texel for the inside-geometry test
@@ -89,34 +88,97 @@ def closest_on_triangle(px, py, ax, ay, bx, by, cx, cy):
 
 
 @njit(cache=True, inline="always")
-def inset(wa, wb, wc, outside, q, amount):
-    """Barycentrics of a sample point moved inward: a hair towards the
-    centroid always (never exactly on an edge), and INSET texels (at most
-    to the centroid) when the texel's centre lay outside the triangle and
-    its point was clamped onto an edge: there a neighbouring surface meeting
-    the edge is at distance 0, where point lights are least accurate (the
-    near-field bound of a VPL), and a bilinear lookup at the edge reads
-    this texel half and the one inside half. `amount`: INSET for lightcuts'
-    texels, 0 for the voxel reconstruction's (smooth across an edge: the
-    clamped point keeps seams closest)."""
+def inset(wa, wb, wc, q, amount, oa, ob, oc):
+    """Barycentrics of a sample point moved inward: to the nearest point of
+    the triangle whose open edges (oa, ob, oc: the edges opposite corners
+    0, 1, 2 where no coplanar triangle continues the surface, open_edges)
+    are moved `amount` texels in (at most half the inradius: a sliver
+    keeps its length), then a hair towards the centroid (never exactly on
+    an edge). A point on or beyond an open edge moves straight in from it;
+    points deeper inside, or by an edge the surface continues across (a
+    quad's diagonal, the next tile of a floor), stay where they are. At an
+    open edge another surface may meet the triangle at distance 0 (a
+    moulding's top flush with the ceiling: rays from a point on that line
+    start on the ceiling's plane and pass it into the sky above), and
+    point lights are least accurate there (the near field of a VPL); a
+    bilinear lookup at the edge reads this texel half and the one inside
+    half, so the edge still shows light from within half a texel.
+    `amount`: INSET for lightcuts' texels; 0 for the voxel
+    reconstruction's (smooth across an edge: the clamped point keeps seams
+    closest)."""
     third = 1.0 / 3.0
-    t = NUDGE
-    if outside:
-        gx = third * (q[0, 0] + q[1, 0] + q[2, 0]) - (wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0])
-        gy = third * (q[0, 1] + q[1, 1] + q[2, 1]) - (wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1])
-        d = math.sqrt(gx * gx + gy * gy)
-        t = 1.0 if d <= amount else max(NUDGE, amount / d)
-    wa = wa + (third - wa) * t
-    wb = wb + (third - wb) * t
+    if amount > 0.0 and (oa or ob or oc):
+        la = math.hypot(q[1, 0] - q[2, 0], q[1, 1] - q[2, 1])
+        lb = math.hypot(q[2, 0] - q[0, 0], q[2, 1] - q[0, 1])
+        lc = math.hypot(q[0, 0] - q[1, 0], q[0, 1] - q[1, 1])
+        area2 = abs((q[1, 0] - q[0, 0]) * (q[2, 1] - q[0, 1]) - (q[2, 0] - q[0, 0]) * (q[1, 1] - q[0, 1]))
+        if area2 > 0.0:
+            s = min(amount, 0.5 * area2 / (la + lb + lc))
+            # a point h_e in from edge e has barycentric l_e h_e / (2 area) for the corner opposite e
+            fa = la * s / area2 if oa else 0.0
+            fb = lb * s / area2 if ob else 0.0
+            fc = lc * s / area2 if oc else 0.0
+            a0, a1, a2 = 1.0 - fb - fc, fb, fc           # the moved triangle's corners, in barycentrics
+            b0, b1, b2 = fa, 1.0 - fa - fc, fc
+            c0, c1, c2 = fa, fb, 1.0 - fa - fb
+            px = wa * q[0, 0] + wb * q[1, 0] + wc * q[2, 0]
+            py = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1]
+            sa, sb, sc = closest_on_triangle(
+                px, py, a0 * q[0, 0] + a1 * q[1, 0] + a2 * q[2, 0], a0 * q[0, 1] + a1 * q[1, 1] + a2 * q[2, 1],
+                b0 * q[0, 0] + b1 * q[1, 0] + b2 * q[2, 0], b0 * q[0, 1] + b1 * q[1, 1] + b2 * q[2, 1],
+                c0 * q[0, 0] + c1 * q[1, 0] + c2 * q[2, 0], c0 * q[0, 1] + c1 * q[1, 1] + c2 * q[2, 1])
+            wa = sa * a0 + sb * b0 + sc * c0
+            wb = sa * a1 + sb * b1 + sc * c1
+            wc = 1.0 - wa - wb
+    wa = wa + (third - wa) * NUDGE
+    wb = wb + (third - wb) * NUDGE
     return wa, wb, 1.0 - wa - wb
 
 
+def open_edges(corners):
+    """(nt, 3) bool: the edges (opposite corners 0, 1, 2) of triangles
+    corners (nt, 3, 3) across which no coplanar triangle continues the
+    surface: edges used by one triangle, or by more than two (a wall
+    meeting a floor along a shared edge), or by two whose winding normals
+    differ (a crease). Endpoints match by their exact coordinates (a mesh's
+    shared vertices); an edge whose neighbour's vertices differ, a
+    T-junction, counts as open (its texels move in a little for nothing)."""
+    c = np.ascontiguousarray(corners, np.float64)
+    nt = len(c)
+    if nt == 0:
+        return np.zeros((0, 3), bool)
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    ends = np.stack([c[:, [1, 2]], c[:, [2, 0]], c[:, [0, 1]]], axis=1).reshape(-1, 2, 3)  # edge e: opposite e
+    # order each edge's endpoints lexicographically so both triangles name it alike
+    d = ends[:, 0] - ends[:, 1]
+    key0 = np.where(d[:, 0] != 0, d[:, 0], np.where(d[:, 1] != 0, d[:, 1], d[:, 2]))
+    lo = np.where((key0 > 0)[:, None], ends[:, 1], ends[:, 0])
+    hi = np.where((key0 > 0)[:, None], ends[:, 0], ends[:, 1])
+    keys = np.concatenate([lo, hi], axis=1)
+    order = np.lexsort(keys.T[::-1])
+    k = keys[order]
+    same = np.all(k[1:] == k[:-1], axis=1)
+    start = np.concatenate([[True], ~same])
+    group = np.cumsum(start) - 1
+    count = np.bincount(group)
+    tri = order // 3
+    out = np.ones(len(keys), bool)
+    two = count[group] == 2
+    pair = np.nonzero(two & start)[0]            # the first of each pair, sorted
+    ta, tb = tri[pair], tri[pair + 1]
+    cont = (np.einsum("ij,ij->i", n[ta], n[tb]) > COPLANAR_COS) & (ta != tb)
+    out[order[pair[cont]]] = False
+    out[order[pair[cont] + 1]] = False
+    return out.reshape(nt, 3)
+
+
 @njit(cache=True, parallel=True)
-def texel_points(corners, chart_tri, corners2d, size, offsets, amount=0.0):
-    """Sample point (N, 3) float64 (moved `amount` texels inward where
-    clamped onto an edge) and covered flag (N,) bool of every texel
-    of every chart (flat, chart c at offsets[c] .., row-major (row j,
-    column i))."""
+def texel_points(corners, chart_tri, corners2d, size, offsets, amount, open_edge):
+    """Sample point (N, 3) float64 (kept `amount` texels in from the open
+    edges, open_edge (nt, 3) bool: `inset`) and covered flag (N,) bool of
+    every texel of every chart (flat, chart c at offsets[c] .., row-major
+    (row j, column i))."""
     total = offsets[-1]
     point = np.zeros((total, 3))
     covered = np.zeros(total, np.bool_)
@@ -132,7 +194,7 @@ def texel_points(corners, chart_tri, corners2d, size, offsets, amount=0.0):
                 dy = wa * q[0, 1] + wb * q[1, 1] + wc * q[2, 1] - py
                 k = offsets[c] + j * s + i
                 covered[k] = dx * dx + dy * dy <= COVER * COVER
-                wa, wb, wc = inset(wa, wb, wc, dx * dx + dy * dy > OUTSIDE * OUTSIDE, q, amount)
+                wa, wb, wc = inset(wa, wb, wc, q, amount, open_edge[t, 0], open_edge[t, 1], open_edge[t, 2])
                 for a in range(3):
                     point[k, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
     return point, covered
@@ -259,15 +321,16 @@ def fill(values, filled, offsets, size, layers=FILL_DISTANCE - 1, target=None):
 
 @njit(cache=True, parallel=True)
 def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texel_tri, texel_back, point, side,
-                     amount, lift, chart_axis, chart_origin, chart_texel, coplanar):
+                     amount, open_edge, lift, chart_axis, chart_origin, chart_texel, coplanar):
     """Anti-aliasing points of the texels `texels` (m,): a side x side grid
     of sub-texel centres over each texel's square, each taken to the point
     of the texel's triangle nearest to it (moved inward as the texel's own
-    point, `inset`), or, with `coplanar` (per-triangle charts: owner[k]'s
-    axis, origin and texel size in chart_axis, chart_origin, chart_texel),
-    to the sub-centre itself where it lies beyond the triangle on a
-    coplanar one that continues the surface (continues_at: as the
-    texel's own point, onto_coplanar). owner (N,) indexes q_all (n, 3, 2): the triangle's
+    point, `inset`), or to the sub-centre itself where it lies beyond the
+    triangle on a coplanar one that continues the surface (continues_at:
+    as the texel's own point, onto_coplanar): with `coplanar` (per-triangle
+    charts: owner[k]'s axis, origin and texel size in chart_axis,
+    chart_origin, chart_texel) on the chart's plane, else (an xatlas page)
+    by the face's own map extended past its edge. owner (N,) indexes q_all (n, 3, 2): the triangle's
     corners in its map's texel units; map_off (m,) and map_size (m,): the
     first texel and the side of each texel's map. Returns points
     (m * side^2, 3) and ok (m * side^2,) bool: False where the segment from
@@ -298,14 +361,20 @@ def sub_texel_points(bvh, corners, texels, owner, q_all, map_off, map_size, texe
             outside = dx * dx + dy * dy > OUTSIDE * OUTSIDE
             r = e * n_sub + sub
             found = False
-            if outside and coplanar:
-                c = owner[k]
-                cx, cy, cz = plane_point(corners, t, chart_axis[c], chart_origin[c], chart_texel[c], px, py)
+            if outside:
+                if coplanar:
+                    c = owner[k]
+                    cx, cy, cz = plane_point(corners, t, chart_axis[c], chart_origin[c], chart_texel[c], px, py)
+                else:   # an xatlas chart is flat where it continues: the face's own map, extrapolated
+                    ea, eb, ec = plane_bary(px, py, q)
+                    cx = ea * corners[t, 0, 0] + eb * corners[t, 1, 0] + ec * corners[t, 2, 0]
+                    cy = ea * corners[t, 0, 1] + eb * corners[t, 1, 1] + ec * corners[t, 2, 1]
+                    cz = ea * corners[t, 0, 2] + eb * corners[t, 1, 2] + ec * corners[t, 2, 2]
                 found = continues_at(bvh, stack, corners, t, texel_back[k], cx, cy, cz, lift)
                 if found:
                     pts[r, 0], pts[r, 1], pts[r, 2] = cx, cy, cz
             if not found:
-                wa, wb, wc = inset(wa, wb, wc, outside, q, amount)
+                wa, wb, wc = inset(wa, wb, wc, q, amount, open_edge[t, 0], open_edge[t, 1], open_edge[t, 2])
                 for a in range(3):
                     pts[r, a] = wa * corners[t, 0, a] + wb * corners[t, 1, a] + wc * corners[t, 2, a]
             ex, ey, ez = pts[r, 0] + lift * nx - ox, pts[r, 1] + lift * ny - oy, pts[r, 2] + lift * nz - oz
@@ -394,6 +463,20 @@ def plane_point(corners, t, a, origin, texel, x, y):
     return p[0], p[1], p[2]
 
 
+@njit(cache=True, inline="always")
+def plane_bary(px, py, q):
+    """Barycentrics of (px, py) with respect to the 2D triangle q (3, 2),
+    unclamped (negative beyond an edge)."""
+    e1x, e1y, e2x, e2y = q[1, 0] - q[0, 0], q[1, 1] - q[0, 1], q[2, 0] - q[0, 0], q[2, 1] - q[0, 1]
+    det = e1x * e2y - e1y * e2x
+    if det == 0.0:
+        return 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0
+    dx, dy = px - q[0, 0], py - q[0, 1]
+    b = (dx * e2y - dy * e2x) / det
+    c = (e1x * dy - e1y * dx) / det
+    return 1.0 - b - c, b, c
+
+
 @njit(cache=True)
 def continues_at(bvh, stack, corners, t, back, px, py, pz, lift):
     """True where the surface of triangle t continues at p (on its plane):
@@ -460,7 +543,7 @@ def onto_coplanar(bvh, corners, chart_tri, chart_back, axis, origin, texel, size
 
 
 @njit(cache=True, parallel=True)
-def between_lattice(values, lum, known, target, point, normal, map_off, map_size, reach, contrast, step):
+def between_lattice(values, lum, known, target, point, normal, map_off, map_size, reach, contrast, step, shift):
     """One level of adaptive shading: texels of `target` on the lattice of
     spacing `step` but not on that of 2 step (i or j an odd multiple of
     step) whose neighbours on the coarser lattice (the two `step` away in
@@ -468,9 +551,13 @@ def between_lattice(values, lum, known, target, point, normal, map_off, map_size
     within `reach` scene units, face within SAME_FACING of its own normal
     (on an xatlas page a neighbour may be another surface: the other face
     of a thin wall) and agree within `contrast` of the largest
-    luminance: their value is set, in place, to those neighbours' mean (the
-    bilinear interpolation at their centre). Returns (N,) bool, the texels
-    so set; the others in `target` need shading of their own."""
+    luminance, and whose points' mean lies within shift[map] scene units of
+    its own point (a point kept in from an open edge, texels.inset, is not
+    where its texel's centre is: the mean of it and a point a texel further
+    in is not the light between them): their value is set, in place, to
+    those neighbours' mean (the bilinear interpolation at their centre).
+    Returns (N,) bool, the texels so set; the others in `target` need
+    shading of their own."""
     out = np.zeros(lum.shape[0], np.bool_)
     r2 = reach * reach
     two = 2 * step
@@ -485,6 +572,7 @@ def between_lattice(values, lum, known, target, point, normal, map_off, map_size
                     continue
                 lo, hi = np.inf, 0.0
                 a0 = a1 = a2 = 0.0
+                m0 = m1 = m2 = 0.0
                 ok = True
                 for e in range(4):
                     ii = i + (di if e & 1 else -di)
@@ -505,6 +593,12 @@ def between_lattice(values, lum, known, target, point, normal, map_off, map_size
                     a0 += values[kk, 0]
                     a1 += values[kk, 1]
                     a2 += values[kk, 2]
+                    m0 += point[kk, 0]
+                    m1 += point[kk, 1]
+                    m2 += point[kk, 2]
+                if ok:
+                    m0, m1, m2 = 0.25 * m0 - point[k, 0], 0.25 * m1 - point[k, 1], 0.25 * m2 - point[k, 2]
+                    ok = m0 * m0 + m1 * m1 + m2 * m2 <= shift[c] * shift[c]
                 if ok and hi - lo <= contrast * hi:
                     values[k, 0], values[k, 1], values[k, 2] = 0.25 * a0, 0.25 * a1, 0.25 * a2
                     out[k] = True

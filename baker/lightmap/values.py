@@ -19,7 +19,7 @@ from ..kernels.traverse import any_hit_batch
 from .atlas import Lightmaps
 from .charts import Charts, per_triangle_charts
 from .texels import (INSET, between_lattice, contrast_texels, fill, inside_geometry, interpolate_corners,
-                     sub_texel_points)
+                     open_edges, sub_texel_points)
 from .smooth_cache import SmoothCache, cube_bins, representatives
 from .voxel_irradiance import reconstruct
 from .xatlas_charts import xatlas_layout
@@ -34,6 +34,7 @@ CLUSTER_BINS = 16   # triangles under half a texel share a shading point when th
 #                     of 1 / CLUSTER_BINS of a face's side (about 6 degrees: the cosine moves by at most ~0.1)
 SAME_PLANE_COS = 0.999  # sparse bounced light: a lattice texel whose normal is this close lies on the same surface
 STRIDE = 2          # adaptive shading: texels on this lattice are shaded first (a power of two)
+SHIFT = 0.1         # texels: adaptive shading interpolates where the neighbours' points' mean lies this near the texel's
 
 
 @dataclass(frozen=True)
@@ -243,15 +244,16 @@ def check_texel_budget(scene, texel_size, uv, memory_budget_mb, what):
     return n
 
 
-def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0):
+def sample_points(layout, corners, inset=0.0, bvh=None, lift=0.0, open_edge=None):
     """(map_offsets, map_size, point, covered, texel_tri, texel_back, owner,
-    corners2d): points clamped onto an edge move `inset` texels inward
-    (texels.inset); texel k's triangle side has its corners at
+    corners2d): points keep `inset` texels in from the open edges
+    (texels.inset, texels.open_edges; open_edge (nt, 3) bool, None: found
+    here); texel k's triangle side has its corners at
     corners2d[owner[k]] (3, 2) in its map's texel units. With the scene's
     bvh, a per-triangle texel whose centre lies on the surface beyond its
     triangle's edge samples the centre (texels.onto_coplanar: no seams
     along the edges between coplanar triangles)."""
-    return layout.sample(corners, inset, bvh, lift)
+    return layout.sample(corners, inset, bvh, lift, open_edge)
 
 
 def preview_texels(prepared, solution, layout, seed=0) -> TexelSet:
@@ -355,7 +357,8 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
     corners = surfaces.arrays.corners
     texel = layout.min_texel
     lift = LIFT * min(h, texel)
-    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift)
+    edges = open_edges(corners)
+    off, size, point, covered, ttri, tback, owner, q_all = sample_points(layout, corners, INSET, bvh, lift, edges)
     small, cpts, once = corner_points(layout, corners)
     by_corners = layout.subtexel[owner] if len(small) else np.zeros(len(point), bool)
     # the inside test is per texel point; a sub-texel triangle's texels have no points of their own
@@ -455,11 +458,12 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
         first = np.nonzero(on)[0]
         values[first] = shade(point[first], normals[first], np.ones(len(first), bool), floor=floor_at(first))
         step = STRIDE // 2
+        shift = SHIFT * (np.broadcast_to(layout.texel, len(size)) if layout.per_triangle else np.full(len(size), texel))
         while step >= 1:
             level = want & (qi % step == 0) & (qj % step == 0) & ~on
             reach = np.inf if layout.per_triangle else 2.5 * step * texel  # xatlas: another chart
             got = between_lattice(values, values @ LUMINANCE, on & ~inside, level & ~inside, point, normals, off, size,
-                                  reach, float(interpolate), step)
+                                  reach, float(interpolate), step, np.ascontiguousarray(shift, np.float64))
             rest = np.nonzero(level & ~got)[0]
             values[rest] = shade(point[rest], normals[rest], np.ones(len(rest), bool), floor=floor_at(rest))
             between |= got
@@ -489,7 +493,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
             m = np.searchsorted(off, aa, side="right") - 1
             per = layout.per_triangle
             pts, ok = sub_texel_points(bvh.arrays, corners, aa, owner, q_all, off[m], size[m], ttri, tback, point,
-                                       int(samples), float(INSET), lift,
+                                       int(samples), float(INSET), edges, lift,
                                        layout.axis if per else np.zeros(1, np.int8),
                                        layout.origin if per else np.zeros((1, 2)),
                                        layout.texel if per else np.zeros(1), per)

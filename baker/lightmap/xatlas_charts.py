@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from .atlas import PAGE
-from .texels import COVER, OUTSIDE, closest_on_triangle, inset
+from .texels import COVER, closest_on_triangle, inset, open_edges
 
 PADDING = 2
 
@@ -58,9 +58,9 @@ class XatlasLayout:
     def subtexel_charts(self) -> np.ndarray:
         return np.zeros(0, np.int64)  # texels follow the surface's area, not its triangles
 
-    def sample(self, corners, inset=0.0, bvh=None, lift=0.0):
+    def sample(self, corners, inset=0.0, bvh=None, lift=0.0, open_edge=None):
         """The Layout protocol's texel points (lightmap/values.py: sample_points)."""
-        point, covered, tri, back, face = xatlas_texels(self, corners, inset)
+        point, covered, tri, back, face = xatlas_texels(self, corners, inset, open_edge)
         size = np.full(self.n_pages, PAGE, np.int64)
         off = np.arange(self.n_pages + 1, dtype=np.int64) * PAGE * PAGE
         return off, size, point, covered, tri, back, face, self.uv
@@ -181,9 +181,11 @@ def _nearest(points, queries):
 
 
 @njit(cache=True)
-def _rasterize(uv, page, n_pages, size, amount):
+def _rasterize(uv, page, n_pages, size, amount, tri, open_edge):
     """Per texel of every page: the face nearest its centre within COVER
-    (-1: none) and the barycentrics of that face's point nearest it."""
+    (-1: none) and the barycentrics of that face's point nearest it, kept
+    `amount` texels in from the open edges of its triangle tri[face]
+    (open_edge (nt, 3) bool: texels.inset)."""
     n = n_pages * size * size
     face = np.full(n, -1, np.int32)
     best = np.full(n, np.inf)
@@ -208,18 +210,23 @@ def _rasterize(uv, page, n_pages, size, amount):
                 if d <= COVER * COVER and d < best[k]:
                     best[k] = d
                     face[k] = f
-                    bary[k, 0], bary[k, 1], bary[k, 2] = inset(wa, wb, wc, d > OUTSIDE * OUTSIDE, q, amount)
+                    t = tri[f]
+                    bary[k, 0], bary[k, 1], bary[k, 2] = inset(wa, wb, wc, q, amount, open_edge[t, 0],
+                                                               open_edge[t, 1], open_edge[t, 2])
     return face, bary
 
 
-def xatlas_texels(layout: XatlasLayout, corners, amount=0.0):
+def xatlas_texels(layout: XatlasLayout, corners, amount=0.0, open_edge=None):
     """Sample points (N, 3), covered (N,), texel_tri (N,) int32, texel_back
     (N,) bool and face (N,) int32 (the layout's triangle side, -1: none) of
     every texel of every page (page-major, row-major)."""
     page = layout.page
     if layout.borrowed is not None and layout.borrowed.any():
         page = np.where(layout.borrowed, -1, page).astype(np.int32)   # a borrowing side owns no texel
-    face, bary = _rasterize(layout.uv, page, layout.n_pages, PAGE, float(amount))
+    if open_edge is None:
+        open_edge = open_edges(corners)
+    face, bary = _rasterize(layout.uv, page, layout.n_pages, PAGE, float(amount), layout.tri.astype(np.int64),
+                            open_edge)
     covered = face >= 0
     f = np.where(covered, face, 0)
     tri = layout.tri[f]
