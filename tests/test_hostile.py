@@ -405,6 +405,13 @@ def test_a_one_byte_json_edit_is_refused(small_bake, tmp_path):
     (lambda d: d["extensions"]["VOXGI_lightmap"]["pages"][0].update(size=10 ** 6), "page size"),
     (lambda d: d["extensions"]["VOXGI_lightmap"]["vpls"].update(count=10 ** 9), "count"),
     (lambda d: d["materials"][0]["extensions"]["VOXGI_lightmap"].update(page=5), "page"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky={"radiance": [1, -1, 1]}), "damaged sky"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky={"radiance": [1, 1]}), "damaged sky"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky={"radiance": [1, 1, 1e400]}), "damaged sky"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky={"radiance": "x"}), "damaged sky"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky={"radiance": [1, 1, 1], "hemisphere": 2}),
+     "damaged sky"),
+    (lambda d: d["extensions"]["VOXGI_lightmap"].update(sky=[1, 1, 1]), "damaged sky"),
     (lambda d: d["images"].append({"uri": "../../etc/passwd"}) or d["textures"].append({"source": len(
         d["images"]) - 1}) or d["materials"][0]["pbrMetallicRoughness"].update(
         baseColorTexture={"index": len(d["textures"]) - 1}), "outside the scene's folder"),

@@ -81,6 +81,7 @@ class Renderer:
                 tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
                 self.emit_textures[i] = tex
         self.draws = draw_groups(bake)
+        self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
 
@@ -95,6 +96,30 @@ class Renderer:
             fmt = " ".join(ATTRIBUTES[a][0 if a in names else 1] for a in ATTRIBUTES)
             self.variants[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, fmt, *names)]))
         return self.variants[key]
+
+    def draw_sky(self, vp, tonemap, exposure):
+        """The bake's sky (if it was lit by one) over the whole viewport at
+        the far plane: surfaces drawn after it cover it; where none is, or
+        through glass, it shows, as in the path tracer."""
+        sky = self.bake.scene.sky
+        if sky is None:
+            return
+        import moderngl
+        from baker.scene.model import UP
+        if tonemap not in self.sky_programs:
+            from .context import build_program
+            prog = build_program(self.ctx, "sky.vert", "sky.frag", {"TONEMAP": tonemap})
+            self.sky_programs[tonemap] = (prog, self.ctx.vertex_array(prog, []))
+        prog, vao = self.sky_programs[tonemap]
+        prog["u_inv_view_proj"].write(np.linalg.inv(vp).T.astype(np.float32).tobytes())
+        prog["u_sky"].value = tuple(float(v) for v in sky.radiance)
+        prog["u_up"].value = tuple(float(v) for v in UP)
+        prog["u_hemisphere"].value = bool(sky.hemisphere)
+        if "u_exposure" in prog:
+            prog["u_exposure"].value = float(exposure)
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        self.ctx.enable(moderngl.DEPTH_TEST)
 
     def clip_range(self, camera):
         """Near and far planes around the scene's bounds."""
@@ -111,6 +136,8 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
+        if mode == "lightmap":
+            self.draw_sky(vp, bool(tonemap), exposure)
         self.pages.use(0)
         mats = self.bake.scene.materials
         current = None
@@ -149,7 +176,7 @@ class Renderer:
             ctx.fbo.depth_mask = True
 
     def release(self):
-        for prog, vao in self.variants.values():
+        for prog, vao in (*self.variants.values(), *self.sky_programs.values()):
             vao.release()
             prog.release()
         for obj in (self.vbo, self.pages, *self.textures.values(), *self.emit_textures.values()):

@@ -235,11 +235,29 @@ def read_bake(path) -> Bake:
     if not np.isfinite(uv1).all():
         raise BakeFileError("lightmap UVs are not finite", path)
     meta = {k: v for k, v in info.items() if k not in ("fileSha256",)}
+    if root.get("sky") is not None:
+        from dataclasses import replace
+        scene = replace(scene, sky=_read_sky(root["sky"], path))
     try:
         vpls = _read_vpls(blob, doc, root.get("vpls"))
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
         raise BakeFileError(f"damaged VPL list ({type(e).__name__}: {e})", path) from None
     return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls)
+
+
+def _read_sky(entry, path):
+    """The Sky the bake was lit by (shown where a view sees no surface)."""
+    from ..scene import Sky
+    try:
+        radiance = np.array(entry["radiance"], dtype=np.float64)
+        hemisphere = entry.get("hemisphere", True)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise BakeFileError(f"damaged sky ({type(e).__name__}: {e})", path) from None
+    if radiance.shape != (3,) or not np.isfinite(radiance).all() or radiance.min() < 0 \
+            or not isinstance(hemisphere, bool):
+        raise BakeFileError("damaged sky (its radiance must be 3 finite non-negative numbers, hemisphere true or "
+                            "false)", path)
+    return Sky(radiance, hemisphere)
 
 
 def _view_bytes(blob, doc, index):

@@ -7,8 +7,10 @@ H bilinearly interpolated from the lightmap page at the point's
 TEXCOORD_1, 4 x 4 box-filtered samples per pixel (as the voxel view and
 the path tracer). Triangles seen from behind are culled, as viewers do
 (a two-sided surface is two baked triangles, one per face). Albedo
-textures are sampled bilinearly, repeated, as glTF's default sampler. The reference the
-viewer's snapshots and the three.js screenshot are checked against.
+textures are sampled bilinearly, repeated, as glTF's default sampler.
+Where a ray meets no surface (or a back face) it shows the sky the bake
+was lit by, if any, as the path tracer does. The reference the viewer's
+snapshots and the three.js screenshot are checked against.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.bvh import STACK_SIZE
-from ..scene.surfaces import hit_past_glass
+from ..scene.surfaces import hit_past_glass, sky_radiance
 from .camera import camera_array, primary_ray, render_bands, subpixel
 from .voxelview import SUBPIXELS
 
@@ -103,7 +105,11 @@ def _rows(bvh, surf, uv1, page, pages_flat, size, cam, width, height, row0, row1
             fx, fy = subpixel(sub, SUBPIXELS)
             ox, oy, oz, dx, dy, dz = primary_ray(cam, x, y, fx, fy, width, height)
             t, j, u, v, gr, gg, gb = hit_past_glass(bvh, surf, stack, ox, oy, oz, dx, dy, dz, True)
-            if j < 0:
+            if j < 0:   # the sky the bake was lit by, if any, through the panes passed
+                s0, s1, s2 = sky_radiance(surf, dx, dy, dz)
+                r0 += s0 * gr
+                r1 += s1 * gg
+                r2 += s2 * gb
                 continue
             tri = bvh.tri_index[j]
             b0 = 1.0 - u - v
