@@ -10,9 +10,20 @@ built with, it drops its cached kernels (they compile again, once).
 Only the cache next to the sources is handled; numba's user-wide cache
 (used when the package folder is read-only) is keyed the same way by
 numba and is left alone.
+
+Several processes may start at once (a bake's workers, tests, benchmark
+runs): the check, the drop and the new stamp happen under an exclusive
+file lock, so a process that finds the sources changed drops the kernels
+once and every later one sees the new stamp; none deletes kernels another
+compiled after its own check.
 """
 import hashlib
 import os
+
+try:
+    import fcntl
+except ImportError:   # not on POSIX: no lock (one process at a time is the user's to keep)
+    fcntl = None
 
 _STAMP = "voxgi-sources.sha256"
 
@@ -39,8 +50,23 @@ def sync(root=None) -> bool:
         return False
     stamp = os.path.join(root, "__pycache__", _STAMP)
     try:
+        os.makedirs(os.path.dirname(stamp), exist_ok=True)
+        lock = open(stamp + ".lock", "a")
+    except OSError:
+        lock = None   # a read-only package: numba uses its user-wide cache, nothing here to drop
+    try:
+        if lock is not None and fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        return _drop_unless_stamped(root, stamp, digest.hexdigest())
+    finally:
+        if lock is not None:
+            lock.close()   # (releases the lock)
+
+
+def _drop_unless_stamped(root, stamp, hexdigest) -> bool:
+    try:
         with open(stamp) as f:
-            if f.read().strip() == digest.hexdigest():
+            if f.read().strip() == hexdigest:
                 return False
     except OSError:
         pass
@@ -56,10 +82,9 @@ def sync(root=None) -> bool:
                 except OSError:
                     pass
     try:
-        os.makedirs(os.path.dirname(stamp), exist_ok=True)
         tmp = stamp + f".{os.getpid()}.tmp"
         with open(tmp, "w") as f:
-            f.write(digest.hexdigest() + "\n")
+            f.write(hexdigest + "\n")
         os.replace(tmp, stamp)
     except OSError:
         pass
