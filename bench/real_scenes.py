@@ -52,8 +52,10 @@ with warnings.catch_warnings(record=True) as caught:
 notes = " ".join(str(w.message) for w in caught)
 cut = re.search(r"cut the overlapping part out of (\d+)", notes)
 whole = re.search(r"left (\d+) coplanar", notes)
+from baker.stats import peak_rss_mb
 print(json.dumps({"load_s": t_load, "import_s": t_import, "triangles": int(len(scene.triangles)),
-                  "cut": int(cut.group(1)) if cut else 0, "whole": int(whole.group(1)) if whole else 0}))
+                  "cut": int(cut.group(1)) if cut else 0, "whole": int(whole.group(1)) if whole else 0,
+                  "peak_mb": peak_rss_mb()}))
 """
 
 FILE_TRIANGLES = r"""
@@ -67,24 +69,25 @@ print(len(parts["triangles"]))
 
 
 def run_child(code, path):
-    """(stdout, peak resident MiB) of a fresh interpreter running `code`."""
+    """stdout of a fresh interpreter running `code`."""
     return run_command([sys.executable, "-c", code, path], path)
 
 
 def run_command(argv, what):
-    """(stdout, peak resident MiB) of a fresh process running argv (its
-    output through files: a bake's progress bars would fill a pipe)."""
+    """stdout of a fresh process running argv (its output through files: a
+    bake's progress bars would fill a pipe). Its peak memory comes from
+    the child itself (baker.stats.peak_rss_mb): the rusage of a child
+    started with vfork counts this process's own peak too."""
     import tempfile
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         p = subprocess.Popen(argv, stdout=out, stderr=err, cwd=ROOT)
-        _, status, usage = os.wait4(p.pid, 0)
-        p.returncode = os.waitstatus_to_exitcode(status)
+        p.wait()
         out.seek(0)
         err.seek(0)
         text, problem = out.read().decode(), err.read().decode(errors="replace").strip()
     if p.returncode != 0:
         raise SystemExit(f"{what}: {problem.splitlines()[-1] if problem else f'exit {p.returncode}'}")
-    return text, usage.ru_maxrss / 1024
+    return text
 
 
 def reference(path, light, res, spp):
@@ -142,11 +145,12 @@ def bake_row(path, preset, res, spp, tmp):
     out, stats = os.path.join(tmp, "bake.glb"), os.path.join(tmp, "stats.json")
     import time
     t = time.perf_counter()
-    _, peak = run_command([sys.executable, "-m", "baker", "bake", path, "-o", out, "--preset", preset, "--stats",
-                           stats, *light], f"{path} ({preset})")
+    run_command([sys.executable, "-m", "baker", "bake", path, "-o", out, "--preset", preset, "--stats", stats,
+                 *light], f"{path} ({preset})")
     wall = time.perf_counter() - t
     with open(stats) as f:
         st = json.load(f)
+    peak = st["peak_rss_mb"]
     sec = {k: v["seconds"] for k, v in st["stages"].items()}
     solve = sum(sec.get(k, 0.0) for k in ("bvh", "voxelize", "photons", "propagation"))
     texels = sum(sec.get(k, 0.0) for k in ("charts", "lights", "texels", "atlas"))
@@ -218,13 +222,12 @@ def bake_table(args, files):
 def load_table(args, files):
     rows = []
     for path in files:
-        n_file = int(run_child(FILE_TRIANGLES, path)[0])
+        n_file = int(run_child(FILE_TRIANGLES, path))
         loads, peaks, info = [], [], None
         for _ in range(args.runs):
-            out, peak = run_child(CHILD, path)
-            info = json.loads(out)
+            info = json.loads(run_child(CHILD, path))
             loads.append(info["load_s"])
-            peaks.append(peak)
+            peaks.append(info["peak_mb"])
         rows.append([os.path.basename(path), f"{n_file:,}", f"{info['triangles']:,}", f"{info['cut']:,}",
                      f"{info['whole']:,}", f"{min(loads):.2f}-{max(loads):.2f}", f"{max(peaks):.0f}"])
     emit(args, "Loading real scenes (voxbake info's load: parse, validate, clean up)", rows,
