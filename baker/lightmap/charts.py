@@ -85,7 +85,7 @@ class Charts:
         off = self.offsets
         size = self.size.astype(np.int64)
         if open_edge is None:
-            open_edge = open_edges(corners)
+            open_edge = open_edges(corners) if inset > 0 else np.zeros((len(corners), 3), bool)   # (unread at 0)
         point, covered = texel_points(corners, self.tri, self.corners2d, self.size, off, float(inset), open_edge)
         if bvh is not None:
             onto_coplanar(bvh.arrays, corners, self.tri, self.back, self.axis, self.origin, self.texel,

@@ -224,7 +224,7 @@ def xatlas_texels(layout: XatlasLayout, corners, amount=0.0, open_edge=None):
     if layout.borrowed is not None and layout.borrowed.any():
         page = np.where(layout.borrowed, -1, page).astype(np.int32)   # a borrowing side owns no texel
     if open_edge is None:
-        open_edge = open_edges(corners)
+        open_edge = open_edges(corners) if amount > 0 else np.zeros((len(corners), 3), bool)   # (unread at 0)
     face, bary = _rasterize(layout.uv, page, layout.n_pages, PAGE, float(amount), layout.tri.astype(np.int64),
                             open_edge)
     covered = face >= 0
