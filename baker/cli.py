@@ -162,11 +162,12 @@ def cmd_bake(args):
         preview_vpls=args.preview_vpls, texel_samples=args.texel_samples, texel_interpolate=args.texel_interpolate,
         texel_indirect_stride=args.texel_indirect_stride, texel_gather=args.texel_gather,
         texel_gather_spacing=args.texel_gather_spacing, **_solver_overrides(args)))
+    checkpoint_at = _check_cluster(args)
     stats = Stats("bake")
-    with threads(args.threads):
+    with threads(args.threads), _executor(args) as executor:
         with stats.stage("load"):
             scene = _load(args)
-        result = bake_scene(scene, config, stats, progress=True)
+        result = bake_scene(scene, config, stats, progress=True, executor=executor, checkpoint=checkpoint_at)
     if not np.isfinite(result.bake.pages).all() or result.bake.pages.min() < 0:
         raise VoxgiError("internal error: non-finite or negative texels (please report)", args.scene)
     checkpoint()
@@ -177,6 +178,44 @@ def cmd_bake(args):
     size = os.path.getsize(args.output)
     print(f"wrote {args.output}  ({size / 2 ** 20:.1f} MiB, {stats.as_dict()['total_seconds']:.2f} s)")
     return 0
+
+
+def _check_cluster(args):
+    """The cluster and checkpoint flags, checked before any work; the
+    Checkpoint asked for (None: none)."""
+    from .bake.pipeline import Checkpoint
+    if args.resume and not args.checkpoint:
+        raise VoxgiError("--resume needs --checkpoint DIR (the folder of the bake to resume)")
+    if (args.tls_ca_file or args.tls_cert or args.tls_key) and not args.scheduler:
+        raise VoxgiError("--tls-ca-file, --tls-cert and --tls-key are for --scheduler tls://...")
+    if args.insecure and not args.scheduler:
+        raise VoxgiError("--insecure is for --scheduler tcp://...")
+    if args.scheduler:
+        from .bake.cluster import check_scheduler, security_for
+        check_scheduler(args.scheduler, args.insecure)
+        security_for(args.tls_ca_file, args.tls_cert, args.tls_key)
+    if not args.checkpoint:
+        return None
+    folder = os.path.abspath(args.checkpoint)
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise VoxgiError("--checkpoint names a file, not a folder", args.checkpoint)
+    for path in _inputs(args) + [args.output]:
+        if os.path.abspath(path) == folder:
+            raise VoxgiError("--checkpoint names an input or the output", args.checkpoint)
+    return Checkpoint(folder, bool(args.resume))
+
+
+def _executor(args):
+    """Where the bake's texel tiles run: this process, a local Dask
+    cluster (--workers) or an existing one (--scheduler)."""
+    from contextlib import nullcontext
+
+    from .bake.executor import LocalExecutor
+    if not (args.workers or args.scheduler):
+        return nullcontext(LocalExecutor())
+    from .bake.cluster import dask_executor
+    return dask_executor(args.workers or 0, args.scheduler, args.threads, args.insecure,
+                         (args.tls_ca_file, args.tls_cert, args.tls_key))
 
 
 def cmd_audit(args):

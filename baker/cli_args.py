@@ -295,8 +295,35 @@ def _bake_parser(sub):
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
     run_args(p)
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    cluster_args(p)
     solver_args(p)
     p.epilog = _presets_epilog()
+
+
+def cluster_args(p):
+    g = p.add_argument_group(
+        "workers and checkpoints (the lightcuts texels, at default and high: the same bytes on any number of "
+        "workers)")
+    w = g.add_mutually_exclusive_group()
+    w.add_argument("--workers", type=integer(1, 4096), metavar="N",
+                   help="shade the texels on a local Dask cluster of N worker processes, one numba thread each "
+                        "(--threads: more)")
+    w.add_argument("--scheduler", metavar="ADDRESS",
+                   help="shade the texels on the workers of an existing Dask cluster (started with `dask "
+                        "scheduler` and `dask worker`, the same voxgi, numpy and numba installed): tls://HOST:PORT, "
+                        "or tcp://127.0.0.1:PORT on this machine; their numba threads: --threads (0: all)")
+    g.add_argument("--insecure", action="store_true",
+                   help="allow a tcp:// scheduler beyond this machine (Dask's tcp:// runs pickled code from "
+                        "anyone who reaches it: only on a network you trust)")
+    g.add_argument("--tls-ca-file", metavar="PEM", help="TLS: the certificate authority's certificate")
+    g.add_argument("--tls-cert", metavar="PEM", help="TLS: this client's certificate")
+    g.add_argument("--tls-key", metavar="PEM", help="TLS: this client's private key")
+    g.add_argument("--checkpoint", metavar="DIR",
+                   help="keep the solve's result and every finished texel tile in DIR (each file written whole), "
+                        "for --resume after Ctrl-C or a crash")
+    g.add_argument("--resume", action="store_true",
+                   help="with --checkpoint: take the solve and the finished tiles from DIR (a checkpoint of "
+                        "another scene or other settings is refused) and shade the rest")
 
 
 def _presets_epilog() -> str:

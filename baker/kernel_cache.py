@@ -36,9 +36,10 @@ def _sources(root):
                 yield os.path.join(folder, name)
 
 
-def sync(root=None) -> bool:
-    """Drops the package's cached numba kernels if its sources changed
-    since they were compiled. Returns True when it dropped any."""
+def source_digest(root=None) -> str | None:
+    """sha256 (hex) of the package's Python sources (None: unreadable):
+    what the kernel cache is stamped with, and what a bake's workers must
+    share with its coordinator (bake/cluster.py)."""
     root = root or os.path.dirname(os.path.abspath(__file__))
     digest = hashlib.sha256()
     try:
@@ -47,6 +48,16 @@ def sync(root=None) -> bool:
             with open(path, "rb") as f:
                 digest.update(f.read())
     except OSError:
+        return None
+    return digest.hexdigest()
+
+
+def sync(root=None) -> bool:
+    """Drops the package's cached numba kernels if its sources changed
+    since they were compiled. Returns True when it dropped any."""
+    root = root or os.path.dirname(os.path.abspath(__file__))
+    hexdigest = source_digest(root)
+    if hexdigest is None:
         return False
     stamp = os.path.join(root, "__pycache__", _STAMP)
     try:
@@ -57,7 +68,7 @@ def sync(root=None) -> bool:
     try:
         if lock is not None and fcntl is not None:
             fcntl.flock(lock, fcntl.LOCK_EX)
-        return _drop_unless_stamped(root, stamp, digest.hexdigest())
+        return _drop_unless_stamped(root, stamp, hexdigest)
     finally:
         if lock is not None:
             lock.close()   # (releases the lock)

@@ -27,6 +27,7 @@ class BakeResult:
     lights: object | None
     texel_stats: object | None
     counts: dict
+    run: str = ""   # where the texel tiles ran (executor.Executor.summary)
 
     def summary(self, stats: Stats) -> str:
         """The closing table of `voxbake bake`: counts, then time and peak
@@ -61,6 +62,8 @@ class BakeResult:
                                  f"{self.maps.dedup_ratio:.2f})"),
                  ("pages", f"{c['pages']} x 512^2 ({c['texels_stored'] / max(1, c['pages']) / 512 ** 2:.0%} used)"),
                  ("triangles", f"{self.bake.triangle_count:,} baked")]
+        if self.run:
+            rows.append(("workers", self.run))
         w = max(len(k) for k, _ in rows)
         out = [f"  {k:<{w}}  {v}" for k, v in rows]
         out.append(f"  {'stage':<{w}}  {'seconds':>8}  {'peak MiB':>9}")
@@ -69,17 +72,49 @@ class BakeResult:
         return "\n".join(out)
 
 
+@dataclass(frozen=True)
+class Checkpoint:
+    """--checkpoint FOLDER (and --resume): where the solve's result and
+    each finished texel tile are kept (executor.TileStore)."""
+    folder: str
+    resume: bool = False
+
+
 def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = None, progress=False, bvh=None,
-               surfaces=None) -> BakeResult:
+               surfaces=None, executor=None, checkpoint: Checkpoint | None = None) -> BakeResult:
     """Scene (or a Prepared) -> BakeResult, on config.solver.threads
-    threads."""
+    threads; the texel tiles on `executor` (bake/executor.py; None: in
+    this process), kept in and taken from `checkpoint`'s folder. The
+    result is the same whatever the executor."""
+    from .executor import LocalExecutor
     config = config or bake_config()
     stats = stats or Stats("bake")
+    executor = executor or LocalExecutor()
     with threads(config.solver.threads):
-        return _bake(scene, config, stats, progress, bvh, surfaces)
+        return _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint)
 
 
-def _texels(prepared, solution, charts, config, stats, progress, texel_size=None):
+def bake_identity(prepared, config) -> str:
+    """sha256 (hex) of what a bake's solution and tiles depend on: the
+    scene's packed surfaces (geometry, materials, textures, lights, sky),
+    the settings (threads aside) and voxgi's sources."""
+    import hashlib
+    import json
+
+    from ..kernel_cache import source_digest
+    settings = asdict(config)
+    settings["solver"] = {k: v for k, v in settings["solver"].items() if k != "threads"}
+    h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
+    h.update((source_digest() or "").encode())
+    arrays = prepared.surfaces.arrays
+    for name in arrays._fields:
+        a = np.ascontiguousarray(getattr(arrays, name))
+        h.update(f"{name}{a.dtype.str}{a.shape}".encode())
+        h.update(a.data)
+    return h.hexdigest()
+
+
+def _texels(prepared, solution, charts, config, stats, progress, texel_size=None, executor=None):
     """(TexelSet, Lights or None, TexelStats or None, counts): the texel
     values of the preview tier (the voxel solution) or of lightcuts."""
     from ..lightmap import lightcuts_texels, preview_texels
@@ -94,7 +129,7 @@ def _texels(prepared, solution, charts, config, stats, progress, texel_size=None
     with stats.stage("lights"):
         lights = build_lights(prepared, solution, lc)
     with stats.stage("texels"), bar(None, "lightcuts texels", "texel", progress) as b:
-        texels, st = lightcuts_texels(prepared, solution, charts, lights, config, b.update, texel_size)
+        texels, st = lightcuts_texels(prepared, solution, charts, lights, config, b.update, texel_size, executor)
     return texels, lights, st, dict(lights.vpls.counts(), **asdict(st), epsilon=lc.epsilon, cut_cap=lc.cap)
 
 
@@ -116,7 +151,7 @@ def _meta(scene, config, solution, counts) -> dict:
             "counts": counts, "python": platform.python_version(), "numpy": np.__version__}
 
 
-def _bake(scene, config, stats, progress, bvh, surfaces):
+def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at):
     from ..lightmap import atlas_for, layout_for
     from ..lightmap.values import capped_note, check_texel_budget, plan_texels
     from ..lights import build_lights, ordered_vpls
@@ -132,7 +167,17 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
     scene = prepared.scene
-    solution = solve(prepared, config.solver, stats=stats, progress=progress)
+    solution = None
+    if checkpoint_at is not None:
+        from .executor import TileStore
+        with stats.stage("checkpoint"):
+            executor.store = TileStore(checkpoint_at.folder, bake_identity(prepared, config), checkpoint_at.resume)
+            solution = executor.store.get_solution() if checkpoint_at.resume else None
+    if solution is None:
+        solution = solve(prepared, config.solver, stats=stats, progress=progress)
+        if executor.store is not None:
+            with stats.stage("checkpoint"):
+                executor.store.put_solution(solution)
     checkpoint()
     with stats.stage("charts"):
         if plan is None:   # the preset's size: from the voxel cell and the scene's extent, within the memory budget
@@ -145,7 +190,9 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
         warnings.warn(note, VoxgiWarning, stacklevel=2)
     checkpoint()
     config = replace(config, uv=plan.uv)   # the layout made, as the file records it
-    texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress, texel_size)
+    texels, lights, texel_stats, shading = _texels(prepared, solution, charts, config, stats, progress, texel_size,
+                                                   executor)
+    stats.count(**{f"tiles_{k}": v for k, v in executor.counts.items()}, workers=executor.workers)
     with stats.stage("atlas"):
         maps = atlas_for(scene, texels)
     checkpoint()
@@ -168,4 +215,5 @@ def _bake(scene, config, stats, progress, bvh, surfaces):
     if not scene.cameras:  # a viewer opens the bake at a camera: the automatic one that sees the scene
         scene = replace(scene, cameras=(replace(camera_for(scene, None, prepared.bvh), name="auto"),))
     bake = baked_scene(scene, charts, maps, meta, ordered)
-    return BakeResult(bake, solution, texels, maps, lights, texel_stats, counts)
+    return BakeResult(bake, solution, texels, maps, lights, texel_stats, counts,
+                      executor.summary() if texel_stats is not None else "")

@@ -26,7 +26,6 @@ from .xatlas_charts import xatlas_layout
 
 LIFT = 0.25   # cells (or texels, the smaller): texel points are lifted this far off their surface for rays
 AA_CONTRAST = 0.1   # texels differing from a neighbour by more than this share of the larger are anti-aliased
-BATCH = 1 << 15     # shading points per call (Ctrl-C checkpoints and progress between them)
 NEAR_BACK = 2.0     # cells: a two-sided triangle seen from behind this near a texel's point counts as inside geometry
 CORNER_IN = 0.25    # a sub-texel triangle's shading points: its corners moved this share of the way to its centroid
 CLUSTER_CELL = 1.0  # texels: the grid of those clusters
@@ -299,7 +298,7 @@ def side_normals(corners, texel_tri, texel_back):
 
 
 def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
-                     texel_size=None) -> tuple[TexelSet, TexelStats]:
+                     texel_size=None, executor=None) -> tuple[TexelSet, TexelStats]:
     """The default and high tiers: each texel's irradiance by lightcuts over
     the VPLs (direct light from the emitters' VPLs with shadow rays, the
     indirect from the voxels'), at its sample point, on its side.
@@ -335,13 +334,14 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
     light there), as the smooth part's cuts are otherwise.
 
     texel_size: the texel the layout was made for (TexelPlan; None: one
-    voxel cell or config.texel_density).
+    voxel cell or config.texel_density). executor: where the points are
+    shaded, tile by tile (bake/executor.py; None: in this process); the
+    result is the same bytes on any.
     config: the BakeConfig (its lightcuts' epsilon and cap, the solver's
     seed, texel_samples as `samples`, texel_contrast as `contrast`,
     texel_interpolate as `interpolate`)."""
-    from ..lights import irradiance, split_lights
-    from ..solve.gather import gather_bounced
-    from ..startup import checkpoint
+    from ..bake.executor import LocalExecutor, ShadeContext
+    from ..lights import split_lights
     bvh, surfaces = prepared.bvh, prepared.surfaces
     epsilon, cap, seed = config.lightcuts.epsilon, config.lightcuts.cap, config.solver.seed
     stride = config.texel_indirect_stride
@@ -369,27 +369,19 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
     values = np.zeros((len(point), 3))
     cuts, rays, gathered, uncut = [], [0], [0], [0]
 
+    run = executor or LocalExecutor()
+    run.open(ShadeContext(bvh, surfaces, lights, bounced, solution if gather else None, lift, epsilon, gather))
+
     def shade(pts, nrm, ok, light=lights, floor=None, c_max=cap, exact=True, count=True):
-        out = np.zeros((len(pts), 3))
-        for a in range(0, len(pts), BATCH):
-            b = slice(a, a + BATCH)
-            out[b], c, r = irradiance(light, bvh, surfaces, pts[b], nrm[b], ok[b], lift, epsilon, c_max,
-                                      exact=exact, floor=None if floor is None else floor[b], analytic=True)
-            cuts.append(c[ok[b]])
-            rays[0] += int(r.sum())
-            checkpoint()
-            if progress is not None and count:
-                progress(int(ok[b].sum()))
+        out, c, r = run.shade("sharp" if light is lights else "smooth", pts, nrm, ok, floor, c_max, exact,
+                              progress if count else None)
+        cuts.append(c[ok])
+        rays[0] += r
         return out
 
     def gathered_at(pts, nrm):
-        out = np.zeros((len(pts), 3))
-        for a in range(0, len(pts), BATCH):
-            b = slice(a, a + BATCH)
-            out[b] = gather_bounced(prepared, solution, pts[b], nrm[b], lift, gather)
-            checkpoint()
         gathered[0] += len(pts) * gather
-        return out
+        return run.shade("gather", pts, nrm)[0]
 
     def shade_bounced(pts, nrm, floor):
         """The smooth light at points whose sharp light has luminance
@@ -400,11 +392,7 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
         else:
             out = shade(pts, nrm, np.ones(len(pts), bool), bounced, floor, config.texel_indirect_cap, False, False)
         if gather and not spacing:   # `bounced` holds the sky alone: the voxels' light by the gather
-            for a in range(0, len(pts), BATCH):
-                b = slice(a, a + BATCH)
-                out[b] += gather_bounced(prepared, solution, pts[b], nrm[b], lift, gather)
-                checkpoint()
-            gathered[0] += len(pts) * gather
+            out += gathered_at(pts, nrm)
         return out
 
     want = found & ~by_corners
