@@ -53,11 +53,45 @@ def local_bytes(tmp_path_factory, cornell, make_scene):
 @pytest.mark.parametrize("name", ["cornell", "thin_wall"])
 def test_two_workers_write_the_same_bytes(cluster, local_bytes, tmp_path, name):
     scene, want = local_bytes[name]
-    before = cluster.counts["tasks"]
+    before = dict(cluster.named)
     result = bake_scene(scene, small(), executor=cluster)
-    assert cluster.counts["tasks"] - before > 4   # the texels did go out as tiles
+    ran = {k: v - before.get(k, 0) for k, v in cluster.named.items()}
+    # the texels went out as tiles, the photons and the solver's gathers as blocks
+    assert ran["tile"] > 4 and ran["photons"] >= 1 and ran["voxels"] >= 3, ran
     assert baked_bytes(tmp_path / "w.glb", result) == want
     assert "2 (local cluster)" in result.run
+
+
+@pytest.mark.slow
+def test_the_bounces_by_lines_on_two_workers_write_the_same_bytes(cluster, cornell, tmp_path):
+    """--gather-rays 0: the bounces go out as blocks of direction
+    families, each block's sums added in block order on the coordinator."""
+    want = baked_bytes(tmp_path / "p.glb", bake_scene(cornell, small(gather_rays=0)))
+    before = cluster.named.get("families", 0)
+    result = bake_scene(cornell, small(gather_rays=0), executor=cluster)
+    assert cluster.named["families"] - before > 10
+    assert baked_bytes(tmp_path / "w.glb", result) == want
+
+
+@pytest.mark.parametrize("gather_rays", [None, 0])
+def test_any_split_and_order_of_the_tasks_gives_the_same_solution(cornell, gather_rays):
+    """The solve's tasks handed back last first, and its gathers split in
+    blocks as for three workers: the same solution, bit for bit, as the
+    plain solve (the photons' and the lines' partial sums are added in
+    block order; a voxel's gather is its own)."""
+    from baker.presets import solver_config
+    from baker.solve import solve
+    kw = {} if gather_rays is None else {"gather_rays": gather_rays}
+    cfg = solver_config("default", resolution=16, photons=150_000, **kw)
+    plain = solve(cornell, cfg)
+    ex = Shuffled(workers=3)
+    shuffled = solve(cornell, cfg, executor=ex)
+    assert ex.named["photons"] >= 3   # 150,000 photons: three blocks
+    assert ex.named["families" if gather_rays == 0 else "voxels"] > 3
+    for a, b in ((plain.irradiance, shuffled.irradiance), (plain.photon_power, shuffled.photon_power),
+                 (plain.photon_centroid, shuffled.photon_centroid)):
+        assert np.array_equal(a, b)
+    assert plain.info["photons_landed"] == shuffled.info["photons_landed"]
 
 
 @pytest.mark.slow
@@ -135,11 +169,27 @@ class Interrupted(LocalExecutor):
         super().__init__(tile=tile)
         self.k = k
 
-    def _run(self, tiles):
-        for j, r in super()._run(tiles):
-            if self.counts["tasks"] >= self.k:
+    def _run(self, fn, items, handles, name):
+        for j, r in super()._run(fn, items, handles, name):
+            if name == "tile" and self.named.get("tile", 0) >= self.k:
                 raise KeyboardInterrupt
             yield j, r
+
+
+class Shuffled(LocalExecutor):
+    """Runs every task here but hands the results back last first, and
+    splits the solver's gathers as for `workers` workers: what a cluster
+    may do."""
+
+    def __init__(self, workers=3, tile=SMALL_TILE):
+        super().__init__(tile=tile)
+        self.workers = workers
+        self.where = "shuffled"
+
+    def _run(self, fn, items, handles, name):
+        done = [fn(item, *handles) for item in items]
+        for j in reversed(range(len(done))):
+            yield j, done[j]
 
 
 def test_resume_skips_the_solve_and_the_finished_tiles(local_bytes, tmp_path, monkeypatch):

@@ -21,12 +21,12 @@ import logging
 import socket
 import time
 from contextlib import contextmanager
-from dataclasses import fields, is_dataclass, replace
+from dataclasses import fields, is_dataclass
 
 import numpy as np
 
 from ..errors import VoxgiError
-from .executor import TILE, Executor, run_tile, timed, version_mismatch, versions
+from .executor import TILE, Executor, run_task, timed, version_mismatch, versions
 
 RETRIES = 2           # a task that raises runs this many more times before the bake fails
 WORKER_WAIT_S = 60.0  # how long a bake waits for an existing cluster's first worker
@@ -130,8 +130,9 @@ class DaskExecutor(Executor):
         self.client = client
         self.where = where
         self.threads = int(threads)
-        self._ctx = None
         self._calls = 0
+        self._checked = False
+        self._versions = versions()
         self.workers = len(client.scheduler_info().get("workers", {}))
 
     def check_workers(self):
@@ -150,23 +151,36 @@ class DaskExecutor(Executor):
                                  "worker")
         self.workers = len(got)
 
-    def _open(self, ctx):
-        self.check_workers()
-        ctx = replace(ctx, versions=versions(), threads=self.threads)
-        self.counts["bytes_sent"] += nbytes(ctx) * max(1, self.workers)
+    def _share(self, obj):
+        self._check()
+        self.counts["bytes_sent"] += nbytes(obj) * max(1, self.workers)
         with timed(self.counts):
-            self._ctx = self.client.scatter(ctx, broadcast=True, hash=False)
+            return self.client.scatter(obj, broadcast=True, hash=False)
 
-    def _run(self, tiles):
+    def _release(self, handle):
+        handle.release()
+
+    def start(self):
+        self.check_workers()
+        self._checked = True
+
+    def _check(self):
+        if not self._checked:
+            self.check_workers()
+            self._checked = True
+
+    def _run(self, fn, items, handles, name):
         from distributed import wait
 
         from ..startup import checkpoint
-        if not tiles:
+        if not items:
             return
+        self._check()
         self._calls += 1
-        keys = [f"voxgi-tile-{t.number}-{self._calls}-{id(self)}" for t in tiles]
-        self.counts["bytes_sent"] += sum(nbytes(t) for t in tiles)
-        futures = self.client.map(run_tile, tiles, ctx=self._ctx, key=keys, retries=RETRIES, pure=False)
+        keys = [f"voxgi-{name}-{getattr(t, 'number', j)}-{self._calls}-{id(self)}" for j, t in enumerate(items)]
+        self.counts["bytes_sent"] += sum(nbytes(t) for t in items)
+        futures = self.client.map(run_task, items, fn=fn, shared=list(handles), versions=self._versions,
+                                  threads=self.threads, key=keys, retries=RETRIES, pure=False)
         index = {f.key: j for j, f in enumerate(futures)}
         pending = set(futures)
         try:
@@ -182,7 +196,7 @@ class DaskExecutor(Executor):
                         exc = f.exception() if f.status == "error" else None
                         if isinstance(exc, VoxgiError):
                             raise VoxgiError(str(exc)) from None
-                        raise VoxgiError(f"{tiles[j].describe()} failed {RETRIES + 1} times on {self.where}"
+                        raise VoxgiError(f"{items[j].describe()} failed {RETRIES + 1} times on {self.where}"
                                          + (f": {_one_line(exc)}" if exc is not None else f" ({f.status})"))
                     t0 = time.perf_counter()
                     r = f.result()
@@ -193,9 +207,6 @@ class DaskExecutor(Executor):
         finally:
             self.client.cancel([f for f in futures if not f.done()])
             del futures
-
-    def close(self):
-        self._ctx = None
 
 
 @contextmanager

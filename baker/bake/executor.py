@@ -1,6 +1,17 @@
-"""Where the bake's texel shading runs: the executor seam.
+"""Where the bake's heavy work runs: the executor seam.
 
-The bake is one coordinator process. Its texel stage (lightmap/values.py)
+The bake is one coordinator process. Three of its stages hand pure tasks
+to an executor and reduce the results themselves, in the tasks' order:
+the photons (fixed blocks of photon indices, solve/photons.py), each
+bounce's propagation (fixed blocks of direction families,
+solve/propagate.py) and the texels. What a stage's tasks all read (the
+BVH, the voxels, a bounce's radiosity) is shared once per worker
+(`share`), and `map` returns the results in the items' order whichever
+finished first, so the plain run (LocalExecutor, in this process) and a
+run on any number of Dask workers (bake/cluster.py) compute the same sums
+in the same order.
+
+The texel stage (lightmap/values.py)
 decides which points to shade and combines their values; the shading
 itself (a lightcut over the VPLs at a point, the gather of bounced light
 from the voxels) is a pure function of the point, its normal and what
@@ -21,7 +32,7 @@ from __future__ import annotations
 import hashlib
 import time
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,9 +47,7 @@ class ShadeContext:
     part, or all of them); smooth: the bounced part (None: none);
     solution: the voxel Solution (the gather's light; None: no gather);
     offset: the points' lift off their surface; epsilon: the cuts' error
-    bound; gather_rays: rays per gathered point; versions: the
-    coordinator's (versions()), which a worker must share; threads: numba
-    threads a worker shades with (0: all it has)."""
+    bound; gather_rays: rays per gathered point."""
     bvh: object
     surfaces: object
     sharp: object
@@ -47,8 +56,6 @@ class ShadeContext:
     offset: float
     epsilon: float
     gather_rays: int
-    versions: dict = field(default_factory=dict)
-    threads: int = 0
 
 
 @dataclass(frozen=True)
@@ -91,17 +98,18 @@ class TileResult:
     rays: int
 
 
-def versions() -> dict:
+def versions(digest: str | None = None) -> dict:
     """What a worker must share with its coordinator for the same bytes:
-    voxgi (its version and the hash of its sources), numpy, numba and
-    Python's minor version."""
+    voxgi (its version and the hash of its sources: `digest`, or read
+    now), numpy, numba and Python's minor version."""
     import platform
 
     import numba
 
     import baker
     from ..kernel_cache import source_digest
-    return {"voxgi": f"{baker.__version__} (sources {(source_digest() or 'unreadable')[:12]})",
+    digest = digest or source_digest()
+    return {"voxgi": f"{baker.__version__} (sources {(digest or 'unreadable')[:12]})",
             "numpy": np.__version__, "numba": numba.__version__,
             "python": ".".join(platform.python_version_tuple()[:2])}
 
@@ -116,32 +124,37 @@ def version_mismatch(theirs: dict, ours: dict) -> str | None:
 
 
 def run_tile(tile: Tile, ctx: ShadeContext) -> TileResult:
-    """The pure task: a tile's light. On a worker, refuses to run with
-    other versions than the coordinator's (a worker that joined later
-    included)."""
-    import numba
-
-    from ..errors import VoxgiError
+    """The pure task: a tile's light."""
     from ..lights import irradiance
     from ..scene.prepared import Prepared
     from ..solve.gather import gather_bounced
-    if ctx.versions:
-        bad = version_mismatch(_own_versions(), ctx.versions)
+    if tile.what == "gather":
+        values = gather_bounced(Prepared(None, ctx.bvh, ctx.surfaces), ctx.solution, tile.points, tile.normals,
+                                ctx.offset, ctx.gather_rays)
+        return TileResult(values, np.zeros(len(tile.points), np.int64), 0)
+    light = ctx.sharp if tile.what == "sharp" else ctx.smooth
+    values, cuts, rays = irradiance(light, ctx.bvh, ctx.surfaces, tile.points, tile.normals, tile.valid,
+                                    ctx.offset, ctx.epsilon, tile.cap, exact=tile.exact, floor=tile.floor,
+                                    analytic=True)
+    return TileResult(values, np.where(tile.valid, cuts, 0), int(rays.sum()))
+
+
+def run_task(item, fn=None, shared=(), versions=None, threads=0):
+    """A task on a worker: fn(item, *shared) with `threads` numba threads
+    (0: all it has), refused when the worker's versions are not the
+    coordinator's (a worker that joined after the bake began included)."""
+    import numba
+
+    from ..errors import VoxgiError
+    if versions:
+        bad = version_mismatch(_own_versions(), versions)
         if bad:
             raise VoxgiError(f"a worker runs {bad}: install the same voxgi, numpy and numba on every worker")
     before = numba.get_num_threads()
-    if ctx.threads:
-        numba.set_num_threads(max(1, min(ctx.threads, numba.config.NUMBA_NUM_THREADS)))
+    if threads:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
-        if tile.what == "gather":
-            values = gather_bounced(Prepared(None, ctx.bvh, ctx.surfaces), ctx.solution, tile.points, tile.normals,
-                                    ctx.offset, ctx.gather_rays)
-            return TileResult(values, np.zeros(len(tile.points), np.int64), 0)
-        light = ctx.sharp if tile.what == "sharp" else ctx.smooth
-        values, cuts, rays = irradiance(light, ctx.bvh, ctx.surfaces, tile.points, tile.normals, tile.valid,
-                                        ctx.offset, ctx.epsilon, tile.cap, exact=tile.exact, floor=tile.floor,
-                                        analytic=True)
-        return TileResult(values, np.where(tile.valid, cuts, 0), int(rays.sum()))
+        return fn(item, *shared)
     finally:
         numba.set_num_threads(before)
 
@@ -150,36 +163,83 @@ _OWN = []
 
 
 def _own_versions() -> dict:
+    """This process's versions, the sources' hash read once (the code it
+    runs is what it loaded first)."""
     if not _OWN:
-        _OWN.append(versions())
-    return _OWN[0]
+        from ..kernel_cache import source_digest
+        _OWN.append(source_digest())
+    return versions(_OWN[0])
 
 
 class Executor:
-    """Runs a bake's shading calls as tiles: the base of the in-process
-    and the Dask executors. Subclasses give `_open(ctx)` (send the context
-    once), `_run(tiles)` (yield (index, TileResult) as tiles finish, in
-    any order) and `close()`. counts: tasks run, tiles taken from the
-    store, retries, bytes sent and received, seconds in transfer."""
+    """Runs a bake's pure tasks (texel tiles; the solve's photon blocks
+    and blocks of direction families): the base of the in-process and the
+    Dask executors. `share(obj)` sends what many tasks read once and gives
+    a handle; `map(fn, items, *handles)` runs fn(item, *shared) for each
+    item and returns the results in the items' order, whichever finished
+    first. Subclasses give `_share`, `_release` and `_run(fn, items,
+    handles, name)` (yield (index, result) as tasks finish, in any order).
+    counts: tasks run, tiles taken from the store, retries, bytes sent and
+    received, seconds in transfer."""
     workers = 0          # 0: in this process
 
     def __init__(self, store=None, tile: int = TILE):
         self.store = store
         self.tile = int(tile)
         self.ctx = None
+        self._ctx_handle = None
         self._numbered = 0
         self.counts = {"tasks": 0, "tiles_resumed": 0, "retries": 0, "bytes_sent": 0, "bytes_received": 0,
                        "transfer_seconds": 0.0}
+        self.named = {}      # tasks run per kind ("tile", "photons", "families")
+
+    def start(self):
+        """A bake begins: a cluster checks its workers' versions."""
+
+    def share(self, obj):
+        """A handle on obj for map's tasks (sent to every worker once)."""
+        return self._share(obj)
+
+    def release(self, handle):
+        """Lets the workers drop a shared object."""
+        if handle is not None:
+            self._release(handle)
+
+    def map(self, fn, items, *handles, name="task", done=None, fold=None) -> list | None:
+        """[fn(item, *shared) for item in items], the tasks run wherever
+        this executor runs them; done(j, result) as item j is done (in
+        any order). With fold, nothing is kept: fold(j, result) is called
+        in the items' order as the results allow (and None returned).
+        items: records with describe() (a failure's name)."""
+        from ..startup import checkpoint
+        results = None if fold else [None] * len(items)
+        waiting, following = {}, 0
+        checkpoint()
+        for j, r in self._run(fn, items, handles, name):
+            self.counts["tasks"] += 1
+            self.named[name] = self.named.get(name, 0) + 1
+            if done is not None:
+                done(j, r)
+            if fold is None:
+                results[j] = r
+            else:
+                waiting[j] = r
+                while following in waiting:
+                    fold(following, waiting.pop(following))
+                    following += 1
+            checkpoint()
+        return results
 
     def open(self, ctx: ShadeContext):
+        """Shares the texel stage's context (the previous bake's let go)."""
+        self.release(self._ctx_handle)
         self.ctx = ctx
-        self._open(ctx)
+        self._ctx_handle = self.share(ctx)
 
     def shade(self, what, points, normals, valid=None, floor=None, cap=0, exact=True, progress=None):
         """(values (n, 3), cuts (n,) at the valid points, shadow rays) for
         the points, tile by tile; progress(k) as the valid points of a
         tile are done."""
-        from ..startup import checkpoint
         n = len(points)
         valid = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
         tiles = []
@@ -203,46 +263,55 @@ class Executor:
                 self.counts["tiles_resumed"] += 1
                 if progress is not None:
                     progress(int(t.valid.sum()))
-        checkpoint()
-        for j, r in self._run([tiles[i] for i in todo]):
+
+        def done(j, r):
             i = todo[j]
-            results[i] = r
-            self.counts["tasks"] += 1
             if self.store is not None:
                 self.store.put(keys[i], r)
             if progress is not None:
                 progress(int(tiles[i].valid.sum()))
-            checkpoint()
+        shaded = self.map(run_tile, [tiles[i] for i in todo], self._ctx_handle, name="tile", done=done)
+        for i, r in zip(todo, shaded):
+            results[i] = r
         values = np.concatenate([r.values for r in results]) if results else np.zeros((0, 3))
         cuts = np.concatenate([r.cuts for r in results]) if results else np.zeros(0, np.int64)
         return values, cuts, sum(r.rays for r in results)
 
-    def _open(self, ctx):
+    def _share(self, obj):
+        return obj
+
+    def _release(self, handle):
         pass
 
-    def _run(self, tiles):
+    def _run(self, fn, items, handles, name):
         raise NotImplementedError
 
     def close(self):
-        pass
+        self.release(self._ctx_handle)
+        self._ctx_handle = None
 
     def summary(self) -> str:
         """The summary table's row."""
         c = self.counts
         resumed = f", {c['tiles_resumed']:,} from the checkpoint" if c["tiles_resumed"] else ""
+        kinds = f"{self.named.get('tile', 0):,} tiles of {self.tile:,} points{resumed}"
+        for name, what in (("photons", "photon blocks"), ("voxels", "voxel blocks"),
+                           ("families", "blocks of directions")):
+            if self.named.get(name):
+                kinds += f", {self.named[name]:,} {what}"
         if not self.workers:
-            return f"in this process: {c['tasks']:,} tiles of {self.tile:,} points{resumed}"
-        return (f"{self.workers} ({self.where}): {c['tasks']:,} tasks of {self.tile:,} points{resumed}, "
+            return f"in this process: {kinds}"
+        return (f"{self.workers} ({self.where}): {c['tasks']:,} tasks ({kinds}), "
                 f"{c['retries']} retries, {c['bytes_sent'] / 2 ** 20:.1f} MiB sent, "
                 f"{c['bytes_received'] / 2 ** 20:.1f} MiB received, {c['transfer_seconds']:.2f} s in transfer")
 
 
 class LocalExecutor(Executor):
-    """The tiles one after another in this process, on its numba threads."""
+    """The tasks one after another in this process, on its numba threads."""
 
-    def _run(self, tiles):
-        for j, t in enumerate(tiles):
-            yield j, run_tile(t, self.ctx)
+    def _run(self, fn, items, handles, name):
+        for j, item in enumerate(items):
+            yield j, fn(item, *handles)
 
 
 class TileStore:

@@ -90,6 +90,7 @@ def bake_scene(scene, config: BakeConfig | None = None, stats: Stats | None = No
     config = config or bake_config()
     stats = stats or Stats("bake")
     executor = executor or LocalExecutor()
+    executor.start()
     with threads(config.solver.threads):
         return _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint)
 
@@ -174,7 +175,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
             executor.store = TileStore(checkpoint_at.folder, bake_identity(prepared, config), checkpoint_at.resume)
             solution = executor.store.get_solution() if checkpoint_at.resume else None
     if solution is None:
-        solution = solve(prepared, config.solver, stats=stats, progress=progress)
+        solution = solve(prepared, config.solver, stats=stats, progress=progress, executor=executor)
         if executor.store is not None:
             with stats.stage("checkpoint"):
                 executor.store.put_solution(solution)

@@ -12,6 +12,7 @@ outgoing radiosity is B = E + rho H.
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +24,7 @@ from ..stats import Stats, release_freed_memory
 from ..voxels import Voxels, resolution_for, voxelize
 from .smoothing import pool_parents, smooth_photons
 from .directions import direction_set
-from .gather import gather_voxels, rays_for_bounce
+from .gather import GatherVoxels, gather_voxels, rays_for_bounce
 from .photons import shoot_photons
 from .propagate import LineSweeper
 
@@ -100,16 +101,36 @@ def first_bounce_irradiance(vox, deposited, photon_lum=0.0, smoothing=0.0, bvh=N
     return h1
 
 
+@contextmanager
+def _bouncing(prepared, vox, gathered: bool, executor=None):
+    """(LineSweeper of the voxels or None when the bounces are gathered,
+    the executor's handle on what every bounce's tasks read: the
+    sweeper's arrays or the gather's GatherVoxels; None without an
+    executor), the handle let go after."""
+    sweeper = None if gathered else LineSweeper(vox)
+    release_freed_memory()
+    handle = None
+    if executor is not None:
+        handle = executor.share(GatherVoxels.of(prepared, vox) if gathered else sweeper.shared())
+    try:
+        yield sweeper, handle
+    finally:
+        if handle is not None:
+            executor.release(handle)
+
+
 def solve(scene, config: SolverConfig, stats: Stats | None = None, bvh=None, surfaces=None, progress=False,
-          keep_bounces=False) -> Solution:
+          keep_bounces=False, executor=None) -> Solution:
     """Scene (or a Prepared: scene/prepared.py) -> Solution by photons and
     linear propagation (the cache method), with config.threads worker
-    threads (the process's setting is put back after)."""
+    threads (the process's setting is put back after); the photon blocks
+    and the propagation's blocks of directions on `executor`
+    (bake/executor.py; None: in this process, the same sums)."""
     with threads(config.threads):
-        return _solve(scene, config, stats or Stats("solve"), bvh, surfaces, progress, keep_bounces)
+        return _solve(scene, config, stats or Stats("solve"), bvh, surfaces, progress, keep_bounces, executor)
 
 
-def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
+def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces, executor):
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
     scene, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
@@ -121,7 +142,7 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     n_photons = config.photon_count(n)
     with stats.stage("photons"), bar(n_photons, "photons", "photon", progress) as pbar:
         dep, pcen, landed, emitted = shoot_photons(scene, surfaces, bvh, vox, n_photons, config.seed,
-                                                   pbar.update)
+                                                   pbar.update, executor)
         release_freed_memory()
     area = vox.area[:, None]
     h1 = first_bounce_irradiance(vox, dep, float(np.sum(emitted)) / max(n_photons, 1), config.photon_smoothing, bvh)
@@ -145,20 +166,19 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces):
     if p1 > 0 and config.max_bounces > 1:
         radii = config.radii()
         gathered = config.gather_rays > 0
-        with stats.stage("propagation"), bar(len(radii), "bounces", "bounce", progress) as bbar:
-            sweeper = None if gathered else LineSweeper(vox)
-            release_freed_memory()
+        with stats.stage("propagation"), bar(len(radii), "bounces", "bounce", progress) as bbar, \
+                _bouncing(prepared, vox, gathered, executor) as (sweeper, shared):
             cache = {}
             targets = {}   # the gather's rays' voxels, once the bounces' rays stop changing (gather_voxels)
             for k, r in enumerate(radii, start=2):
                 if gathered:
                     g = rays_for_bounce(config.gather_rays, k)
-                    hk = gather_voxels(prepared, vox, current, g, targets)
+                    hk = gather_voxels(prepared, vox, current, g, targets, executor, shared, k)
                     gather_rays += n * g
                     per_bounce.append(g)
                 else:
                     dirs = cache.get(r) or cache.setdefault(r, direction_set(r))
-                    hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k))
+                    hk = sweeper.irradiance(current, dirs, sweeper.offsets(dirs, config.seed, k), executor, shared, k)
                     rays += n * dirs.n_directions
                     radii_used.append(r)
                     directions.append(dirs.n_directions)

@@ -26,6 +26,7 @@ goes on, tinted.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -38,6 +39,8 @@ from ..voxels.tolerances import SHEET_BACK_COS, SKIN_COS
 
 GLASS_LAYERS = 8   # panes a gather ray crosses before it stops (a window's two faces, a display case)
 GATHER_FLOOR = 64   # rays per voxel below which a later bounce's gather does not halve
+VOXEL_BLOCKS = 4        # tasks per worker for each of the solver's gathers (a voxel's value is its own: any split
+VOXEL_BLOCK_MIN = 1024  # gives the same bits), each of at least this many voxels; in this process, one task
 VOXEL_LIFT = 0.25   # cells: a voxel's gather rays start this far off its centroid, along its normal
 VOXEL_GAP = 0.3     # cells: two voxels facing each other closer than this pass no light by the solver's gather. Such
 #                     a gap (a lamp 1 cm under a ceiling) is thinner than a voxel: the ceiling's voxel over the lamp's
@@ -195,41 +198,134 @@ def rays_for_bounce(rays: int, k: int) -> int:
     return max(min(rays, GATHER_FLOOR), rays >> min(k - 2, 30))
 
 
-def gather_voxels(prepared, vox, radiosity, rays, cache=None) -> np.ndarray:
+@dataclass(frozen=True)
+class GatherVoxels:
+    """What every block of the solver's gathers shares: the kernels' BVH
+    arrays and materials, the voxels' normals, centroids, cut signs,
+    planarity and lookup, the rays' lift and the facing gap (lengths)."""
+    bvh: object
+    double: np.ndarray
+    mat_of: np.ndarray
+    normal: np.ndarray
+    centroid: np.ndarray
+    cut: np.ndarray
+    planar: np.ndarray
+    pieces: object
+    lift: float
+    gap: float
+
+    @classmethod
+    def of(cls, prepared, vox):
+        a = prepared.surfaces.arrays
+        return cls(prepared.bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(vox.normal, np.float64),
+                   np.ascontiguousarray(vox.centroid, np.float64), vox.cut_sign, vox.planar, vox.lookup(),
+                   VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size)
+
+
+@dataclass(frozen=True)
+class VoxelBlock:
+    """Voxels start .. stop - 1 (or, with `own`, those voxels), gathered
+    by `rays` rays at bounce `bounce` ("targets": their rays' voxels
+    recorded instead): one task."""
+    number: int
+    bounce: int
+    start: int
+    stop: int
+    rays: int
+    targets: bool = False
+    own: np.ndarray | None = None
+
+    def voxels(self) -> np.ndarray:
+        return self.own if self.own is not None else np.arange(self.start, self.stop, dtype=np.int64)
+
+    def describe(self) -> str:
+        what = "the rays' voxels" if self.targets else "gather"
+        return f"voxel block {self.number} of bounce {self.bounce} ({what}, {len(self.voxels()):,} voxels)"
+
+
+def gather_block(block: VoxelBlock, g: GatherVoxels, radiosity=None):
+    """The pure task: (m, 3) the block's gathered irradiance, or (targets
+    (m, k) int32, live (m,) bool) for a targets block."""
+    own = block.voxels()
+    local = gather_directions(int(block.rays))
+    args = (g.bvh, g.double, g.mat_of)
+    if block.targets:
+        target = np.empty((len(own), len(local)), np.int32)
+        live = np.zeros(len(own), bool)
+        gather_targets(*args, g.normal, g.centroid, g.cut, g.planar, g.pieces, own, g.lift, g.gap, local, target,
+                       live)
+        return target, live
+    out = np.zeros((len(own), 3))
+    gather_kernel(*args, radiosity, g.normal, g.centroid, g.cut, g.planar, g.pieces, g.centroid[own], g.normal[own],
+                  own, g.lift, g.gap, local, out)
+    return out
+
+
+def _block_size(n, executor):
+    workers = getattr(executor, "workers", 0)
+    return max(n, 1) if not workers else max(VOXEL_BLOCK_MIN, -(-n // (VOXEL_BLOCKS * workers)))
+
+
+def _blocks(n, size, rays, bounce, targets=False):
+    return [VoxelBlock(j, bounce, a, min(n, a + size), int(rays), targets) for j, a in enumerate(range(0, n, size))]
+
+
+def _own_blocks(own, size, rays, bounce):
+    return [VoxelBlock(j, bounce, 0, 0, int(rays), False, own[a:a + size])
+            for j, a in enumerate(range(0, len(own), size))]
+
+
+def gather_voxels(prepared, vox, radiosity, rays, cache=None, executor=None, shared=None, bounce=0) -> np.ndarray:
     """(n, 3) float64: the irradiance at each voxel (its centroid, lifted
     VOXEL_LIFT cells along its normal) gathered by `rays` rays from the
     voxels' radiosity (n, 3). cache: a dict kept across bounces; the
     bounces that take GATHER_FLOOR rays (all but the first two) cast the
     same rays from the same points, so the first of them records the
-    voxel each ray reads (GatherTargets) and the others only read them."""
-    a = prepared.surfaces.arrays
-    out = np.zeros((len(vox), 3))
-    if not len(vox):
+    voxel each ray reads (GatherTargets) and the others only read them.
+    The voxels go out in blocks on `executor` (None: here; shared: its
+    handle on GatherVoxels.of(prepared, vox)), VOXEL_BLOCKS per worker; a
+    voxel's value depends on nothing else, so the split changes no bit."""
+    from ..startup import checkpoint
+    n = len(vox)
+    out = np.zeros((n, 3))
+    if not n:
         return out
-    normal = np.ascontiguousarray(vox.normal, np.float64)
-    centroid = np.ascontiguousarray(vox.centroid, np.float64)
     radiosity = np.ascontiguousarray(radiosity, np.float64)
-    args = (prepared.bvh.arrays, a.double_sided, a.tri_material)
-    local = gather_directions(int(rays))
+    g = GatherVoxels.of(prepared, vox) if shared is None else None
+    size = _block_size(n, executor)
+
+    def run(blocks, light=None):
+        """The blocks' results, in order."""
+        if executor is None:
+            res = []
+            for b in blocks:
+                checkpoint()
+                res.append(gather_block(b, g, light) if light is not None else gather_block(b, g))
+            return res
+        handle = shared if shared is not None else executor.share(g)
+        lit = executor.share(light) if light is not None else None
+        try:
+            return executor.map(gather_block, blocks, handle, *(() if lit is None else (lit,)), name="voxels")
+        finally:
+            executor.release(lit)
+            if shared is None:
+                executor.release(handle)
     if cache is None or int(rays) > GATHER_FLOOR:
-        gather_kernel(*args, radiosity, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid, normal,
-                      np.arange(len(vox), dtype=np.int64), VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size,
-                      local, out)
+        blocks = _blocks(n, size, rays, bounce)
+        for b, r in zip(blocks, run(blocks, radiosity)):
+            out[b.start:b.stop] = r
         return out
     if int(rays) not in cache:
-        target = np.empty((len(vox), len(local)), np.int32)
-        live = np.zeros(len(vox), bool)
-        gather_targets(*args, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), np.arange(len(vox)),
-                       VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size, local, target, live)
+        blocks = _blocks(n, size, rays, bounce, targets=True)
+        parts = run(blocks)
+        target = np.concatenate([t for t, _ in parts])
+        live = np.concatenate([lv for _, lv in parts])
         cache[int(rays)] = (target, np.nonzero(live)[0])
     target, live = cache[int(rays)]
     gather_read(target, radiosity, out)
     if len(live):   # voxels with a ray through glass: traced afresh (their rays read several voxels, tinted)
-        sub = np.zeros((len(live), 3))
-        gather_kernel(*args, radiosity, normal, centroid, vox.cut_sign, vox.planar, vox.lookup(), centroid[live],
-                      normal[live], live.astype(np.int64), VOXEL_LIFT * vox.cell_size, VOXEL_GAP * vox.cell_size,
-                      local, sub)
-        out[live] = sub
+        blocks = _own_blocks(live.astype(np.int64), size, rays, bounce)
+        out[live] = np.concatenate(run(blocks, radiosity))
     return out
 
 

@@ -15,7 +15,10 @@ direction from the Halton sequence at index i (bases 2, 3, 5, 7, 11, 13),
 each dimension shifted by a seeded rotation (Cranley-Patterson). The
 photon set is a function of (seed, i) only: the same for any thread count
 and any batch size, and far less noisy than independent random photons.
-Photons are shot in batches (a progress bar, and Ctrl-C between batches).
+Photons are shot in fixed blocks of BLOCK indices (pure tasks an executor
+may run anywhere: bake/executor.py); each block's deposits are summed in
+photon order into its own partial sums, and the partials are added to
+the voxels' in block order: the same sums for any thread or worker count.
 
 Directional lights (a sun) cover the scene's whole bounding disc, and over
 a building most of that lands on the outside of one-sided walls and is
@@ -28,6 +31,7 @@ walkthrough this lands 754k of 1M photons instead of 89k.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -37,11 +41,12 @@ from ..kernels.rng import STREAM_PHOTON_GLASS, STREAM_PHOTON_ROTATION, rand01
 from ..kernels.sampling import cosine_hemisphere, frame, sample_cdf
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.model import LightKind
+from ..startup import checkpoint
 from ..scene.surfaces import (VOXEL_PASS, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, emission_at,
                               sample_emitter, sky_solid_angle, spot_falloff, triangle_normal)
 from ..voxels.lookup import voxel_of_hit
 
-BATCH = 1 << 18         # photons per batch (a progress step)
+BLOCK = 1 << 16         # photons per block (a task, and a progress step); fixed: it sets the sums' order
 GUIDE_CELLS = 64        # directional lights: G x G cells across the light
 GUIDE_FLOOR = 0.1       # share of a directional light's photons spread evenly over its disc
 MAX_GLASS = 64          # panes a photon goes through before it is dropped
@@ -328,10 +333,69 @@ def _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, 
     return np.array(tables), rows
 
 
-def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0, progress=None):
+@dataclass(frozen=True)
+class PhotonShot:
+    """What every block of a photon pass shares: the kernels' BVH,
+    surfaces and voxel lookup, the light table (cdf, kinds, refs,
+    powers), the photon count n, the sequence's rotation, the ray offset,
+    the lights' disc (center, radius) and the directional lights' guide
+    tables (guide, rows)."""
+    bvh: object
+    surf: object
+    lookup: object
+    cdf: np.ndarray
+    kinds: np.ndarray
+    refs: np.ndarray
+    powers: np.ndarray
+    n: int
+    rot: np.ndarray
+    eps: float
+    center: np.ndarray
+    radius: float
+    guide: np.ndarray
+    rows: np.ndarray
+
+
+@dataclass(frozen=True)
+class PhotonBlock:
+    """Photons i0 .. i1 - 1: one task."""
+    number: int
+    i0: int
+    i1: int
+
+    def describe(self) -> str:
+        return f"photon block {self.number} (photons {self.i0:,} to {self.i1 - 1:,})"
+
+
+@dataclass(frozen=True)
+class PhotonPart:
+    """A block's deposits: the voxels it reached (sorted), the power
+    (k, 3) and power-weighted point sums (k, 3) it left in each, summed in
+    photon order, and the photons that landed."""
+    voxels: np.ndarray
+    power: np.ndarray
+    centroid: np.ndarray
+    landed: int
+
+
+def shoot_block(block: PhotonBlock, shot: PhotonShot) -> PhotonPart:
+    """The pure task: a block's photons traced and deposited."""
+    pts, pw, ok, tri, back, _, _ = shoot(shot.bvh, shot.surf, shot.cdf, shot.kinds, shot.refs, shot.powers, block.i0,
+                                         block.i1, shot.n, shot.rot, shot.eps, shot.center, shot.radius, shot.guide,
+                                         shot.rows)
+    vi = find_voxels(pts, ok, tri, back, shot.lookup)
+    reached, row = np.unique(vi[vi >= 0], return_inverse=True)
+    rows = np.full(len(vi), -1, np.int64)
+    rows[vi >= 0] = row
+    dep, cen = np.zeros((len(reached), 3)), np.zeros((len(reached), 3))
+    landed = deposit(rows, pw, pts, dep, cen)
+    return PhotonPart(reached.astype(np.int64), dep, cen, int(landed))
+
+
+def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0, progress=None, executor=None):
     """Returns (deposited power (nv, 3), photon-weighted centroid sums (nv, 3),
-    photons landed, emitted power (3,)). `progress(k)` after each batch of
-    k photons."""
+    photons landed, emitted power (3,)). `progress(k)` after each block of
+    k photons; the blocks on `executor` (bake/executor.py; None: here)."""
     kinds, refs, powers, center, radius = light_table(scene, surfaces)
     nv = len(voxels)
     dep, cen = np.zeros((nv, 3)), np.zeros((nv, 3))
@@ -341,12 +405,28 @@ def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0, progress=None):
     rot = np.array([rand01(seed, STREAM_PHOTON_ROTATION, d) for d in range(8)])
     eps = 1e-7 * float(np.abs(scene.vertices).max() or 1.0)
     guide, rows = _guides(surfaces, bvh, voxels, kinds, refs, powers, center, radius, n, rot, eps)
-    landed = 0
-    for i0 in range(0, int(n), BATCH):
-        i1 = min(int(n), i0 + BATCH)
-        pts, pw, ok, tri, back, _, _ = shoot(bvh.arrays, surfaces.arrays, cdf, kinds, refs, powers, i0, i1, int(n),
-                                             rot, eps, center, radius, guide, rows)
-        landed += deposit(_voxels_hit(voxels, pts, ok, tri, back), pw, pts, dep, cen)
+    shot = PhotonShot(bvh.arrays, surfaces.arrays, voxels.lookup(), cdf, kinds, refs, powers, int(n), rot, eps,
+                      np.asarray(center, np.float64), float(radius), guide, rows)
+    blocks = [PhotonBlock(b, i0, min(int(n), i0 + BLOCK)) for b, i0 in enumerate(range(0, int(n), BLOCK))]
+
+    def done(j, part):
         if progress is not None:
-            progress(i1 - i0)
+            progress(blocks[j].i1 - blocks[j].i0)
+    if executor is None:
+        parts = []
+        for j, b in enumerate(blocks):
+            checkpoint()
+            parts.append(shoot_block(b, shot))
+            done(j, parts[-1])
+    else:
+        handle = executor.share(shot)
+        try:
+            parts = executor.map(shoot_block, blocks, handle, name="photons", done=done)
+        finally:
+            executor.release(handle)
+    landed = 0
+    for part in parts:   # in block order: the same sums wherever the blocks ran
+        dep[part.voxels] += part.power
+        cen[part.voxels] += part.centroid
+        landed += part.landed
     return dep, cen, landed, powers.sum(axis=0)

@@ -5,8 +5,16 @@ cut table, the three axis-major orders, the cell boundaries in each, the
 table size); `gather` runs one bounce over a direction set:
 
     H(x) = (1 / S(n_x)) sum_{s in D, n_x.s > 0} (B(I(x, s)) / pi) (n_x.s) dW(s)
+
+A bounce's families go out in fixed blocks of FAMILY_BLOCK of one
+dominant axis (pure tasks an executor may run anywhere:
+bake/executor.py); each block sums its families' gathers in family order
+from zero, and the blocks' sums are added in block order: the same sums
+for any thread or worker count.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,6 +30,57 @@ from .sweep import HIT_BATCH, propagate_families
 
 TAU = 0.1     # plane tolerance, in cells (docs/design.md section 4)
 KAPPA = 1.0   # convex-edge reach, in cells
+FAMILY_BLOCK = 16   # families per task: a multiple of the sweep's hit batch and of its two lanes
+
+
+@dataclass(frozen=True)
+class SweepVoxels:
+    """What every block of every bounce shares: the voxel rows and the
+    orders the sweep reads (LineSweeper's arrays)."""
+    orders: np.ndarray
+    starts: np.ndarray
+    cell: np.ndarray
+    cell_lo: np.ndarray
+    cell_hi: np.ndarray
+    pos: np.ndarray
+    cutp: np.ndarray
+    max_group: int
+
+
+@dataclass(frozen=True)
+class FamilyBlock:
+    """Families of one dominant axis (their canonical vectors, unit
+    vectors, weights dW / pi and line offsets), swept over the bounce's
+    line table (size, hashed): one task."""
+    number: int
+    bounce: int
+    axis: int
+    vectors: np.ndarray
+    units: np.ndarray
+    weights: np.ndarray
+    offsets: np.ndarray
+    table_size: int
+    hashed: bool
+
+    def describe(self) -> str:
+        return (f"direction block {self.number} of bounce {self.bounce} ({len(self.vectors)} families along axis "
+                f"{'xyz'[self.axis]})")
+
+
+@dataclass(frozen=True)
+class FamilyPart:
+    """A block's gathered sums (n, 3) and quadrature sums S (n,)."""
+    gathered: np.ndarray
+    quad: np.ndarray
+
+
+def sweep_block(block: FamilyBlock, vox: SweepVoxels, radiosity: np.ndarray) -> FamilyPart:
+    """The pure task: a block's families swept over the voxels."""
+    g, q = propagate_families(vox.orders, vox.starts, vox.cell, vox.cell_lo, vox.cell_hi, vox.pos, vox.cutp,
+                              radiosity, block.vectors, np.full(len(block.vectors), block.axis, np.int32),
+                              block.units, block.weights, block.offsets, TAU, KAPPA, vox.max_group,
+                              block.table_size, block.hashed)
+    return FamilyPart(g, q)
 
 
 class LineSweeper:
@@ -172,16 +231,56 @@ class LineSweeper:
                 out[f, j] = int(u * a[f]) % a[f]
         return out
 
-    def gather(self, radiosity, dirs: DirectionSet, offsets):
-        """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
-        quadrature's cosine integral per voxel."""
-        return propagate_families(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos,
-                                  self.cutp, np.ascontiguousarray(radiosity, np.float64), dirs.vectors,
-                                  dirs.axis, dirs.unit, dirs.solid_angle / np.pi, offsets, TAU, KAPPA,
-                                  self.max_group, *self.line_table(dirs))
+    def shared(self) -> SweepVoxels:
+        return SweepVoxels(self.orders, self.starts, self.cell, self.cell_lo, self.cell_hi, self.pos, self.cutp,
+                           self.max_group)
 
-    def irradiance(self, radiosity, dirs: DirectionSet, offsets):
+    def blocks(self, dirs: DirectionSet, offsets, bounce=0) -> list:
+        """The bounce's families in fixed blocks: axis by axis, FAMILY_BLOCK
+        at a time in the set's order."""
+        size, hashed = self.line_table(dirs)
+        weights = dirs.solid_angle / np.pi
+        out = []
+        for k in range(3):
+            fams = np.nonzero(dirs.axis == k)[0]
+            for f0 in range(0, len(fams), FAMILY_BLOCK):
+                f = fams[f0:f0 + FAMILY_BLOCK]
+                out.append(FamilyBlock(len(out), bounce, k, np.ascontiguousarray(dirs.vectors[f]),
+                                       np.ascontiguousarray(dirs.unit[f]), np.ascontiguousarray(weights[f]),
+                                       np.ascontiguousarray(offsets[f]), int(size), bool(hashed)))
+        return out
+
+    def gather(self, radiosity, dirs: DirectionSet, offsets, executor=None, shared=None, bounce=0):
+        """(gathered (n, 3), S (n,)): sum of B(I(x, s)) (n.s) dW / pi and the
+        quadrature's cosine integral per voxel, the blocks on `executor`
+        (None: here; shared: its handle on self.shared())."""
+        from ..startup import checkpoint
+        radiosity = np.ascontiguousarray(radiosity, np.float64)
+        gathered, quad = np.zeros((self.n, 3)), np.zeros(self.n)
+
+        def fold(j, part):   # in block order: the same sums wherever the blocks ran
+            np.add(gathered, part.gathered, out=gathered)
+            np.add(quad, part.quad, out=quad)
+        blocks = self.blocks(dirs, offsets, bounce)
+        if executor is None:
+            vox = self.shared()
+            for j, b in enumerate(blocks):
+                checkpoint()
+                fold(j, sweep_block(b, vox, radiosity))
+            return gathered, quad
+        own = shared is None
+        shared = executor.share(self.shared()) if own else shared
+        light = executor.share(radiosity)
+        try:
+            executor.map(sweep_block, blocks, shared, light, name="families", fold=fold)
+        finally:
+            executor.release(light)
+            if own:
+                executor.release(shared)
+        return gathered, quad
+
+    def irradiance(self, radiosity, dirs: DirectionSet, offsets, executor=None, shared=None, bounce=0):
         """H (n, 3) = gathered / S, computed in place."""
-        g, s = self.gather(radiosity, dirs, offsets)
+        g, s = self.gather(radiosity, dirs, offsets, executor, shared, bounce)
         g /= np.where(s > 0, s, np.inf)[:, None]
         return g
