@@ -293,6 +293,11 @@ def _bake_parser(sub):
                         f"(preset: {per_preset(lambda p: p.texel_gather_spacing)}; 0: on each map's lattice)")
     p.add_argument("--texels", choices=TEXEL_SOURCES,
                    help=f"where texel values come from (preset: {per_preset(lambda p: p.texels)})")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--probe-spacing", type=number(0, 1e9, lo_open=True), metavar="S",
+                   help="scene units between the irradiance probes that light moving objects (default: about "
+                        f"{per_preset(lambda p: p.probes.budget)} probes over the scene's bounds)")
+    g.add_argument("--no-probes", action="store_true", help="bake no irradiance probes")
     run_args(p)
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
     cluster_args(p)
@@ -302,14 +307,14 @@ def _bake_parser(sub):
 
 def cluster_args(p):
     g = p.add_argument_group(
-        "workers and checkpoints (the lightcuts texels, at default and high: the same bytes on any number of "
-        "workers)")
+        "workers and checkpoints (the photons, the bounces, the probes and the texels: the same bytes on any number "
+        "of workers)")
     w = g.add_mutually_exclusive_group()
     w.add_argument("--workers", type=integer(1, 4096), metavar="N",
-                   help="shade the texels on a local Dask cluster of N worker processes, one numba thread each "
-                        "(--threads: more)")
+                   help="run the bake's heavy work on a local Dask cluster of N worker processes, one numba thread "
+                        "each (--threads: more)")
     w.add_argument("--scheduler", metavar="ADDRESS",
-                   help="shade the texels on the workers of an existing Dask cluster (started with `dask "
+                   help="run the bake's heavy work on the workers of an existing Dask cluster (started with `dask "
                         "scheduler` and `dask worker`, the same voxgi, numpy and numba installed): tls://HOST:PORT, "
                         "or tcp://127.0.0.1:PORT on this machine; their numba threads: --threads (0: all)")
     g.add_argument("--insecure", action="store_true",

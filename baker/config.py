@@ -135,6 +135,28 @@ MAX_INDIRECT_STRIDE = 16
 MAX_TEXELS_ACROSS = 4096
 
 
+MAX_PROBE_COPIES = 4096   # rotated icosahedra per probe at most (49,152 rays)
+
+
+@dataclass(frozen=True)
+class ProbeConfig:
+    """The irradiance probe grid of a bake (probes/): spacing between
+    probes in scene units (None: about `budget` probes over the scene's
+    bounds); copies: rotated icosahedra of 12 rays each per probe (0: no
+    probes)."""
+    spacing: float | None = None
+    budget: int = 4096
+    copies: int = 64
+
+    def __post_init__(self):
+        if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing > 0):
+            raise ConfigError(f"the probe spacing must be a positive number of scene units (got {self.spacing})")
+        if not 1 <= self.budget <= 1 << 20:
+            raise ConfigError(f"the probe budget must lie in [1, {1 << 20}] (got {self.budget})")
+        if not 0 <= self.copies <= MAX_PROBE_COPIES:
+            raise ConfigError(f"probe ray sets must lie in [0, {MAX_PROBE_COPIES}] (got {self.copies})")
+
+
 @dataclass(frozen=True)
 class BakeConfig:
     """solver: the voxel solution's settings; uv: 'per-triangle' (the
@@ -167,7 +189,8 @@ class BakeConfig:
     voxels' VPLs (0: the cut); texel_gather_spacing: the gathered light
     is gathered at records this many voxel cells apart over the surfaces
     and interpolated between them (lightmap/smooth_cache.py), except where
-    they disagree (0: at each map's lattice)."""
+    they disagree (0: at each map's lattice); probes: the irradiance probe
+    grid (ProbeConfig)."""
     solver: SolverConfig = field(default_factory=SolverConfig)
     uv: str = "per-triangle"
     texel_density: float | None = None
@@ -183,6 +206,7 @@ class BakeConfig:
     texel_gather_spacing: float = 0.0
     preview_lightcuts: LightcutsConfig = field(default_factory=LightcutsConfig)
     texels_across: int = 0
+    probes: ProbeConfig = field(default_factory=ProbeConfig)
 
     def __post_init__(self):
         if not 1 <= self.texel_samples <= MAX_TEXEL_SAMPLES:

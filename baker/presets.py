@@ -8,7 +8,7 @@ from __future__ import annotations
 import difflib
 from dataclasses import dataclass, fields, replace
 
-from .config import TEXEL_SOURCES, BakeConfig, LightcutsConfig, SolverConfig
+from .config import TEXEL_SOURCES, BakeConfig, LightcutsConfig, ProbeConfig, SolverConfig
 from .errors import ConfigError
 
 
@@ -28,7 +28,8 @@ class Preset:
     the texels' cuts of the emitters' light (None: the lightcuts');
     texels_across: texels over the scene's thinnest extent where that is
     finer than a voxel cell (0: one texel per cell); uv: the lightmap
-    layout (config.UV_MODES)."""
+    layout (config.UV_MODES); probes: the irradiance probe grid's budget
+    and rays (config.ProbeConfig)."""
     name: str
     about: str
     solver: SolverConfig
@@ -45,6 +46,7 @@ class Preset:
     texel_gather_spacing: float = 0.0
     texels_across: int = 0
     uv: str = "auto"
+    probes: ProbeConfig = ProbeConfig()
 
 
 # The preview keeps per-triangle maps, its texels the voxels' light read at each: on the staircase --uv auto took
@@ -72,14 +74,14 @@ PRESETS = {p.name: p for p in (
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=200,
-           texel_gather_spacing=1.0, texels_across=64),
+           texel_gather_spacing=1.0, texels_across=64, probes=ProbeConfig(budget=4096, copies=64)),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
            texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0,
-           texels_across=128),
+           texels_across=128, probes=ProbeConfig(budget=16384, copies=256)),
 )}
 
 
@@ -116,11 +118,11 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
 def bake_config(name="default", uv=None, texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
                 texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, texel_gather_spacing=None,
-                texels_across=None, **solver_overrides) -> BakeConfig:
+                texels_across=None, probe_spacing=None, probe_copies=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
-    bound; the rest as config.BakeConfig, solver_overrides as
-    solver_config."""
+    bound; probe_spacing, probe_copies: the probe grid's (ProbeConfig);
+    the rest as config.BakeConfig, solver_overrides as solver_config."""
     p = preset(name)
     uv = uv or p.uv
     texels = texels or p.texels
@@ -142,7 +144,9 @@ def bake_config(name="default", uv=None, texel_density=None, texels=None, epsilo
         int(texel_gather if texel_gather is not None else p.texel_gather),
         float(texel_gather_spacing if texel_gather_spacing is not None else p.texel_gather_spacing),
         preview_lightcuts=lightcuts_config(name, seed=solver.seed),
-        texels_across=int(texels_across if texels_across is not None else p.texels_across))
+        texels_across=int(texels_across if texels_across is not None else p.texels_across),
+        probes=replace(p.probes, spacing=probe_spacing if probe_spacing is not None else p.probes.spacing,
+                       copies=int(probe_copies if probe_copies is not None else p.probes.copies)))
 
 
 def help_table() -> str:
@@ -163,5 +167,6 @@ def help_table() -> str:
                        f"sky every {p.texel_indirect_stride} texels, "
                        + (f"bounced by {p.texel_gather} gather rays)" if p.texel_gather else
                           f"cut <= {p.texel_indirect_cap:,})")
-                       if p.texels == "lightcuts" else ""))
+                       if p.texels == "lightcuts" else "")
+                    + f"\n           about {p.probes.budget:,} irradiance probes of {12 * p.probes.copies:,} rays")
     return "presets:\n" + "\n".join(rows)

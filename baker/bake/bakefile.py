@@ -13,7 +13,8 @@
   but the 8 bits go to the scene) for other viewers; the full-precision
   page (half-float EXR, `image/x-exr`, H in W/m^2 times `exrScale`) in the
   root `VOXGI_lightmap` extension for ours, with the ordered VPL list of
-  the viewer's progressive preview (`vpls`: float32 rows of VPL_FIELDS).
+  the viewer's progressive preview (`vpls`: float32 rows of VPL_FIELDS)
+  and the irradiance probe grid (`probes`: _probe_entry).
 - Cameras, KHR_lights_punctual lights, and in root `extras.voxgi`: format
   version, voxgi version, settings, counts, and `fileSha256`, the SHA-256
   of the whole file with those 64 digits written as zeros (JSON and binary
@@ -124,9 +125,78 @@ def write_bake(path, bake: Bake, inputs=()):
                         "fields": list(VPL_FIELDS)}
     if scene.sky is not None:
         root["sky"] = {"radiance": [float(v) for v in scene.sky.radiance], "hemisphere": bool(scene.sky.hemisphere)}
+    if bake.probes is not None:
+        root["probes"] = _probe_entry(b, bake.probes)
     extras = {"voxgi": {"formatVersion": FORMAT_VERSION, "version": __version__, **_jsonable(bake.meta)}}
     b.save(path, extensions={EXTENSION: root}, extras=extras, checksum_key="voxgi", inputs=inputs)
     return path
+
+
+PROBES_VERSION = 1
+SH_ORDER = ("Y00", "Y1-1", "Y10", "Y11", "Y2-2", "Y2-1", "Y20", "Y21", "Y22")
+
+
+def _probe_entry(b, pr) -> dict:
+    """The probe block of the root extension: the grid, then four
+    bufferViews (little-endian, probe-major, x fastest, then y, then z):
+    sh float32 [probe][9][rgb], the incident radiance's real spherical
+    harmonics; irradiance float32 [probe][row][column][rgb] of an
+    octahedral map of normals; depth float32 [probe][row][column][mean,
+    mean square] of an octahedral distance map; valid uint8 [probe]."""
+    return {"version": PROBES_VERSION,
+            "origin": [float(v) for v in pr.origin], "spacing": float(pr.spacing),
+            "dims": [int(v) for v in pr.dims], "rays": int(pr.rays),
+            "sh": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.sh, "<f4").tobytes()),
+                   "coefficients": list(SH_ORDER), "unit": "W m^-2 sr^-1"},
+            "irradiance": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.irradiance, "<f4").tobytes()),
+                           "size": int(pr.irradiance.shape[1]), "mapping": "octahedral", "unit": "W m^-2"},
+            "depth": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.depth, "<f4").tobytes()),
+                      "size": int(pr.depth.shape[1]), "mapping": "octahedral", "fields": ["mean", "meanSquare"]},
+            "valid": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.valid, np.uint8).tobytes())}}
+
+
+def _read_probes(blob, doc, entry):
+    """The probe block, checked (sizes against the bytes present before
+    anything is made of them); None where the bake has none."""
+    if entry is None:
+        return None
+    from ..probes.gather import DEPTH, IRR, MAX_PROBES, SH, ProbeGrid
+    if entry.get("version") != PROBES_VERSION:
+        raise ValueError(f"probe block version {entry.get('version')!r}, this voxgi reads {PROBES_VERSION}")
+    dims = entry["dims"]
+    if not (isinstance(dims, list) and len(dims) == 3 and all(isinstance(d, int) and d >= 1 for d in dims)):
+        raise ValueError(f"probe dims {dims!r}")
+    n = dims[0] * dims[1] * dims[2]
+    if n > MAX_PROBES:
+        raise ValueError(f"{n} probes, over the limit of {MAX_PROBES}")
+    origin = np.array(entry["origin"], np.float64)
+    spacing = float(entry["spacing"])
+    rays = entry["rays"]
+    if origin.shape != (3,) or not np.isfinite(origin).all() or not (np.isfinite(spacing) and spacing > 0) \
+            or not isinstance(rays, int) or rays < 1:
+        raise ValueError("probe origin, spacing or ray count")
+    for key, size in (("depth", DEPTH), ("irradiance", IRR)):
+        if entry[key].get("size") != size or entry[key].get("mapping") != "octahedral":
+            raise ValueError(f"probe {key} map size or mapping")
+    if list(entry["sh"].get("coefficients", [])) != list(SH_ORDER):
+        raise ValueError("probe coefficients")
+    out = []
+    for key, dtype, shape in (("sh", "<f4", (n, SH, 3)), ("irradiance", "<f4", (n, IRR, IRR, 3)),
+                              ("depth", "<f4", (n, DEPTH, DEPTH, 2)), ("valid", np.uint8, (n,))):
+        data = _view_bytes(blob, doc, entry[key]["bufferView"])
+        want = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        if len(data) != want:
+            raise ValueError(f"probe {key}: {len(data)} bytes, {want} expected")
+        out.append(np.frombuffer(data, dtype).reshape(shape).copy())
+    sh, irr, depth, valid = out
+    if not (np.isfinite(sh).all() and np.isfinite(irr).all() and np.isfinite(depth).all()):
+        raise ValueError("non-finite probe values")
+    if min(irr.min(initial=0), depth.min(initial=0)) < 0:
+        raise ValueError("negative probe irradiance or distances")
+    if valid.max(initial=0) > 1:
+        raise ValueError("probe validity other than 0 or 1")
+    return ProbeGrid(origin, spacing, np.array(dims, np.int64), sh.astype(np.float32), irr.astype(np.float32),
+                     depth.astype(np.float32), valid.astype(bool), rays)
 
 
 def _jsonable(obj):
@@ -242,7 +312,11 @@ def read_bake(path) -> Bake:
         vpls = _read_vpls(blob, doc, root.get("vpls"))
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
         raise BakeFileError(f"damaged VPL list ({type(e).__name__}: {e})", path) from None
-    return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls)
+    try:
+        probes = _read_probes(blob, doc, root.get("probes"))
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+        raise BakeFileError(f"damaged probe block ({type(e).__name__}: {e})", path) from None
+    return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls, probes)
 
 
 def _read_sky(entry, path):

@@ -19,7 +19,8 @@ class Bake:
     triangle's lightmap page; pages (P, 512, 512, 3) float32 irradiance H
     (W/m^2); page_scale (P,) float32 the 8-bit pages' intensity; meta: the
     bake's settings, counts, versions and timings; vpls: the ordered VPL
-    list of the viewer's progressive preview (lights/ordered.py), or None."""
+    list of the viewer's progressive preview (lights/ordered.py), or None;
+    probes: the irradiance probe grid (probes.ProbeGrid), or None."""
     scene: Scene
     uv1: np.ndarray
     page: np.ndarray
@@ -27,13 +28,14 @@ class Bake:
     page_scale: np.ndarray
     meta: dict = field(default_factory=dict)
     vpls: object = None
+    probes: object = None
 
     @property
     def triangle_count(self) -> int:
         return len(self.page)
 
 
-def baked_scene(scene, charts, lightmaps, meta=None, vpls=None) -> Bake:
+def baked_scene(scene, charts, lightmaps, meta=None, vpls=None, probes=None) -> Bake:
     """Scene + charts + lightmaps -> Bake, its triangles in the file's
     order: by material, then page (one primitive each), then chart."""
     order = np.lexsort((lightmaps.chart_page, scene.material_ids[charts.tri]))
@@ -62,4 +64,4 @@ def baked_scene(scene, charts, lightmaps, meta=None, vpls=None) -> Bake:
                   uvs=None if uvs is None else uvs.astype(np.float32), cameras=tuple(scene.cameras),
                   lights=tuple(scene.lights), sky=scene.sky, path=scene.path)
     return Bake(baked, uv1.astype(np.float32), lightmaps.chart_page[order].astype(np.int32), lightmaps.pages,
-                lightmaps.page_scale.astype(np.float32), dict(meta or {}), vpls)
+                lightmaps.page_scale.astype(np.float32), dict(meta or {}), vpls, probes)

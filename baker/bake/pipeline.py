@@ -62,6 +62,11 @@ class BakeResult:
                                  f"{self.maps.dedup_ratio:.2f})"),
                  ("pages", f"{c['pages']} x 512^2 ({c['texels_stored'] / max(1, c['pages']) / 512 ** 2:.0%} used)"),
                  ("triangles", f"{self.bake.triangle_count:,} baked")]
+        pr = self.bake.probes
+        if pr is not None:
+            rows.append(("probes", f"{pr.count:,} ({' x '.join(str(int(d)) for d in pr.dims)}, "
+                                   f"{int(pr.valid.sum()):,} valid), {pr.spacing:.4g} scene units apart, "
+                                   f"{pr.rays:,} rays each"))
         if self.run:
             rows.append(("workers", self.run))
         w = max(len(k) for k, _ in rows)
@@ -156,6 +161,8 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
     from ..lightmap import atlas_for, layout_for
     from ..lightmap.values import capped_note, check_texel_budget, plan_texels
     from ..lights import build_lights, ordered_vpls
+    from ..probes import bake_probes, grid_for
+    from ..progress import bar
     from ..scene import camera_for, prepare
     from ..solve import solve
     from ..startup import checkpoint
@@ -165,6 +172,10 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
     if config.texel_density:   # refused before any work when the pages cannot fit
         plan = plan_texels(scene, None, config.texel_density, uv=config.uv)
         check_texel_budget(scene, plan.texel_size, plan.uv, budget, f"--texel-density {config.texel_density:g}")
+    probe_grid = None
+    if config.probes.copies:   # a grid over the limit is refused before any work
+        lo, hi = scene.bounds()
+        probe_grid = grid_for(lo, hi, config.probes.spacing, config.probes.budget)
     with stats.stage("bvh"):
         prepared = prepare(scene, bvh, surfaces)
     scene = prepared.scene
@@ -179,6 +190,14 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
         if executor.store is not None:
             with stats.stage("checkpoint"):
                 executor.store.put_solution(solution)
+    checkpoint()
+    probes = None
+    if probe_grid is not None:
+        with stats.stage("probes"), bar(int(np.prod(probe_grid[2])), "probes", "probe", progress) as pbar:
+            probes = bake_probes(prepared, solution, probe_grid, config.probes.copies, config.solver.seed, executor,
+                                 pbar.update)
+        stats.count(probes=probes.count, probes_valid=int(probes.valid.sum()), probe_spacing=probes.spacing,
+                    probe_rays=probes.rays)
     checkpoint()
     with stats.stage("charts"):
         if plan is None:   # the preset's size: from the voxel cell and the scene's extent, within the memory budget
@@ -215,6 +234,6 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
         stats.count(preview_vpls=len(ordered))
     if not scene.cameras:  # a viewer opens the bake at a camera: the automatic one that sees the scene
         scene = replace(scene, cameras=(replace(camera_for(scene, None, prepared.bvh), name="auto"),))
-    bake = baked_scene(scene, charts, maps, meta, ordered)
+    bake = baked_scene(scene, charts, maps, meta, ordered, probes)
     return BakeResult(bake, solution, texels, maps, lights, texel_stats, counts,
                       executor.summary() if texel_stats is not None else "")

@@ -54,3 +54,4 @@ STREAM_ROULETTE = 0xD1CE              # the path tracer's Russian roulette: seed
 ROULETTE_GLASS_DIM = 1 << 20         # dims from here + depth: whether the path goes through thin glass
 STREAM_AUDIT_FAMILIES = 77           # index; dim i: the audit's i-th family (audit.py)
 STREAM_AUDIT_VOXELS = 1000           # index 1000 + family; dim i: the audit's i-th voxel of that family
+STREAM_PROBE_EMITTERS = 0x9B0BE      # seed mixed with this; index the probe, dims 0..2: its emitter samples' rotation

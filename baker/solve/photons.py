@@ -41,7 +41,7 @@ from ..kernels.rng import STREAM_PHOTON_GLASS, STREAM_PHOTON_ROTATION, rand01
 from ..kernels.sampling import cosine_hemisphere, frame, sample_cdf
 from ..kernels.traverse import closest_hit, hit_normal
 from ..scene.model import LightKind
-from ..startup import checkpoint
+from ..tasks import run_tasks
 from ..scene.surfaces import (VOXEL_PASS, LIGHT_AREA, LIGHT_DIRECTIONAL, LIGHT_SKY, LIGHT_SPOT, emission_at,
                               sample_emitter, sky_solid_angle, spot_falloff, triangle_normal)
 from ..voxels.lookup import voxel_of_hit
@@ -409,21 +409,8 @@ def shoot_photons(scene, surfaces, bvh, voxels, n, seed=0, progress=None, execut
                       np.asarray(center, np.float64), float(radius), guide, rows)
     blocks = [PhotonBlock(b, i0, min(int(n), i0 + BLOCK)) for b, i0 in enumerate(range(0, int(n), BLOCK))]
 
-    def done(j, part):
-        if progress is not None:
-            progress(blocks[j].i1 - blocks[j].i0)
-    if executor is None:
-        parts = []
-        for j, b in enumerate(blocks):
-            checkpoint()
-            parts.append(shoot_block(b, shot))
-            done(j, parts[-1])
-    else:
-        handle = executor.share(shot)
-        try:
-            parts = executor.map(shoot_block, blocks, handle, name="photons", done=done)
-        finally:
-            executor.release(handle)
+    parts = run_tasks(executor, shoot_block, blocks, shot, "photons",
+                      None if progress is None else lambda j, _: progress(blocks[j].i1 - blocks[j].i0))
     landed = 0
     for part in parts:   # in block order: the same sums wherever the blocks ran
         dep[part.voxels] += part.power

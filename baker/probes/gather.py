@@ -1,0 +1,504 @@
+"""Irradiance probes for moving objects (docs/design.md, "Irradiance probes").
+
+After the solve, probes are placed on a regular grid in the scene's
+bounds. Each probe stores the radiance that reaches it as real spherical
+harmonics to order 2 (9 RGB coefficients), gathered with exact
+visibility. The light is split as the texels split it: rays from the
+probe read the bounced light (the voxel solution's rho H / pi, the side
+they hit, through thin glass tinted) where they land and the sky where
+they escape; the area emitters are sampled (EMITTER_SAMPLES points by
+power, stratified, each behind a shadow ray) and, with the punctual
+lights and the sun, added as the deltas they are (a small lamp seen by a
+few uniform rays would be noise). The rays are rotated copies of the
+icosahedron's 12 vertices: each copy is a spherical 5-design, so the
+projection of any light of order 2 or less (a furnace's constant
+included) is exact, not a Monte-Carlo estimate.
+
+Order 2 cannot hold a lamp's irradiance: a delta's order-2 irradiance
+overshoots by 37% facing it and is 37% of the peak facing away. So each
+probe also stores its irradiance itself, E(n) over an octahedral map of
+IRR x IRR normals (the rays and deltas convolved with the clamped cosine
+at each texel's normal), which is what our viewer reads; the SH are for
+clients that take them (three.js's LightProbe).
+
+Each probe also keeps what interpolation needs to stop leaks, as DDGI
+does: the mean and mean square distance to the nearest surface over an
+octahedral map of DEPTH x DEPTH directions, and a validity flag (false
+where a quarter or more of its rays meet the back of a one-sided surface:
+inside a wall, outside a building, in a closed volume).
+
+A shading point x with normal n reads (probes/sample.py) the eight
+probes of its grid cell, weighted by trilinear weights, a smooth
+backface term and a Chebyshev visibility test against the probe's
+distance moments toward x (a probe the test puts behind a surface counts
+for nothing), then E(n) = sum_l A_l sum_m c_lm Y_lm(n), A = (pi, 2 pi / 3,
+pi / 4): irradiance, clamped at 0 (order-2 ringing).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from ..errors import ConfigError
+from ..kernels.bvh import PASS_GLASS, STACK_SIZE
+from ..kernels.rng import STREAM_PROBE_EMITTERS, rand01
+from ..kernels.traverse import closest_hit, hit_normal, transmittance
+from ..scene.surfaces import (LIGHT_DIRECTIONAL, LIGHT_SPOT, emission_at, sample_emitter, sky_radiance, spot_falloff,
+                              triangle_normal)
+from ..solve.gather import GAP_STOP, GLASS_LAYERS, _read_at
+
+SH = 9            # coefficients per channel (order 2)
+IRR = 17          # the irradiance map's texels per side (octahedral; odd: texel centres on the axes, where the
+#                   parameterization bends, so bilinear reads stay within a few per cent)
+DEPTH = 8         # the distance map's texels per side (octahedral)
+EMITTER_SAMPLES = 256   # points on the area emitters per probe
+DEPTH_SUB = 2     # rays per texel per side for the distance map
+BACKFACE_INVALID = 0.25   # share of backface hits that makes a probe invalid
+MAX_PROBES = 1 << 20      # probes in a grid at most (a flag that asks more is refused before any work)
+ICOSA = 12
+MAX_DIST = 4.0   # spacings: the distance map's rays are capped here
+SH_BAND = np.array([math.pi] + [2 * math.pi / 3] * 3 + [math.pi / 4] * 5)   # the cosine lobe per band
+
+
+@dataclass(frozen=True)
+class ProbeGrid:
+    """origin (3,) the first probe, spacing (scene units), dims (3,) probes
+    per axis (x fastest in every array); sh (N, 9, 3) float32 radiance SH
+    (real, order 2, Y order: 00, 1-1, 10, 11, 2-2, 2-1, 20, 21, 22);
+    irradiance (N, IRR, IRR, 3) float32 E at each octahedral texel's
+    normal (row v, column u); depth (N, DEPTH, DEPTH, 2) float32 mean and
+    mean square distance per octahedral texel; valid (N,) bool; rays per
+    probe."""
+    origin: np.ndarray
+    spacing: float
+    dims: np.ndarray
+    sh: np.ndarray
+    irradiance: np.ndarray
+    depth: np.ndarray
+    valid: np.ndarray
+    rays: int
+
+    @property
+    def count(self) -> int:
+        return int(np.prod(self.dims))
+
+    def positions(self) -> np.ndarray:
+        return probe_positions(self.origin, self.spacing, self.dims)
+
+
+def probe_positions(origin, spacing, dims) -> np.ndarray:
+    """(N, 3) float64, x fastest, then y, then z."""
+    k = np.indices(tuple(int(d) for d in dims[::-1])).reshape(3, -1)[::-1].T   # (N, 3) as (i, j, l)
+    return np.asarray(origin, np.float64) + spacing * k
+
+
+def grid_for(lo, hi, spacing=None, budget=4096):
+    """(origin, spacing, dims): probes `spacing` apart (None: about
+    `budget` probes over the bounds, each axis counted as at least 1/16 of
+    the longest), centred in the bounds, each at least a quarter spacing
+    inside them. Refuses a grid over MAX_PROBES in one line."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    ext = np.maximum(hi - lo, 0.0)
+    big = float(ext.max()) if ext.size else 0.0
+    if big <= 0 or not np.isfinite(big):
+        raise ConfigError("the scene has no extent to place probes in")
+    if spacing is None:
+        eff = np.maximum(ext, big / 16)
+        spacing = float(np.prod(eff) / budget) ** (1 / 3)
+    spacing = float(spacing)
+    if not (np.isfinite(spacing) and spacing > 0):
+        raise ConfigError(f"the probe spacing must be a positive number (got {spacing})")
+    want = np.maximum(1, np.rint(ext / spacing))
+    if float(np.prod(want)) > MAX_PROBES:
+        raise ConfigError(f"a probe spacing of {spacing:g} gives {int(np.prod(want)):,} probes over the scene's "
+                          f"bounds, over the limit of {MAX_PROBES:,}: give a larger --probe-spacing")
+    dims = want.astype(np.int64)
+    origin = lo + (ext - (dims - 1) * spacing) / 2
+    return origin, spacing, dims
+
+
+def icosahedron() -> np.ndarray:
+    g = (1 + 5 ** 0.5) / 2
+    v = []
+    for a in (-1.0, 1.0):
+        for b in (-g, g):
+            v += [(0.0, a, b), (a, b, 0.0), (b, 0.0, a)]
+    v = np.array(v)
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def ray_set(copies: int, seed: int = 0) -> np.ndarray:
+    """(12 copies, 3) unit directions: the icosahedron's vertices under
+    `copies` fixed rotations (seeded quaternions, uniform on SO(3)); the
+    union of spherical 5-designs is one, so it integrates every
+    polynomial of degree 5 or less over the sphere exactly."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9e0be]))
+    q = rng.normal(size=(copies, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    w, x, y, z = q.T
+    rot = np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)   # (c, 3, 3)
+    return np.einsum("cij,vj->cvi", rot, icosahedron()).reshape(-1, 3)
+
+
+@njit(cache=True, inline="always")
+def sh_basis(x, y, z, out):
+    out[0] = 0.28209479177387814
+    out[1] = 0.4886025119029199 * y
+    out[2] = 0.4886025119029199 * z
+    out[3] = 0.4886025119029199 * x
+    out[4] = 1.0925484305920792 * x * y
+    out[5] = 1.0925484305920792 * y * z
+    out[6] = 0.31539156525252005 * (3.0 * z * z - 1.0)
+    out[7] = 1.0925484305920792 * x * z
+    out[8] = 0.5462742152960396 * (x * x - y * y)
+
+
+def sh_basis_np(d) -> np.ndarray:
+    """(n, 9) the basis at unit directions d (n, 3)."""
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    c1, c2, c3, c4 = 0.4886025119029199, 1.0925484305920792, 0.31539156525252005, 0.5462742152960396
+    return np.stack([np.full_like(x, 0.28209479177387814), c1 * y, c1 * z, c1 * x, c2 * x * y, c2 * y * z,
+                     c3 * (3 * z * z - 1), c2 * x * z, c4 * (x * x - y * y)], axis=1)
+
+
+@njit(cache=True, inline="always")
+def oct_encode(x, y, z):
+    """Unit direction -> octahedral (u, v) in [0, 1]^2."""
+    s = abs(x) + abs(y) + abs(z)
+    px, py = x / s, y / s
+    if z < 0.0:
+        qx = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0)
+        qy = (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
+        px, py = qx, qy
+    return 0.5 * (px + 1.0), 0.5 * (py + 1.0)
+
+
+@njit(cache=True, inline="always")
+def oct_decode(u, v):
+    px, py = 2.0 * u - 1.0, 2.0 * v - 1.0
+    pz = 1.0 - abs(px) - abs(py)
+    if pz < 0.0:
+        qx = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0)
+        qy = (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
+        px, py = qx, qy
+    n = math.sqrt(px * px + py * py + pz * pz)
+    return px / n, py / n, pz / n
+
+
+@njit(cache=True)
+def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, bounced, ox, oy, oz, dx,
+                    dy, dz, ray_density, n_emit):
+    """(r, g, b, distance to the first surface, hit its one-sided back):
+    the radiance a ray from o along d brings: the bounced light
+    (`bounced` / pi of the voxel where it lands), an emitter's own light
+    under its MIS weight against the emitter samples (balance heuristic:
+    ray_density = rays / 4 pi, n_emit samples by power), through thin
+    glass tinted; the sky where it escapes."""
+    w0 = w1 = w2 = 1.0
+    a0 = a1 = a2 = 0.0
+    first = np.inf
+    back = False
+    run = 0.0
+    for layer in range(GLASS_LAYERS):
+        t, j, u, v = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+        if j < 0:
+            s0, s1, s2 = sky_radiance(surf, dx, dy, dz)
+            a0 += w0 * s0
+            a1 += w1 * s1
+            a2 += w2 * s2
+            break
+        tri = bvh.tri_index[j]
+        hx, hy, hz = hit_normal(bvh, j)
+        cos_in = -(hx * dx + hy * dy + hz * dz)
+        facing = cos_in > 0.0 or double[mat_of[tri]]
+        if layer == 0:
+            first = t
+            back = not facing
+        mat = mat_of[tri]
+        e = surf.emission
+        if facing and (e[mat, 0] > 0.0 or e[mat, 1] > 0.0 or e[mat, 2] > 0.0) and bvh.tri_pass[j] != PASS_GLASS:
+            er, eg, eb = emission_at(surf, tri, u, v)
+            r = run + t
+            p_e = surf.emitter_prob[tri] / surf.tri_area[tri] * r * r / max(abs(cos_in), 1e-300)
+            w = ray_density / (ray_density + n_emit * p_e) if n_emit > 0 else 1.0
+            a0 += w0 * er * w
+            a1 += w1 * eg * w
+            a2 += w2 * eb * w
+        vi = _read_at(bvh, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, 0.0, -dx, -dy, -dz, ox, oy, oz,
+                      dx, dy, dz, t, j)
+        if vi == GAP_STOP:
+            break
+        if vi >= 0:
+            a0 += w0 * bounced[vi, 0] / math.pi
+            a1 += w1 * bounced[vi, 1] / math.pi
+            a2 += w2 * bounced[vi, 2] / math.pi
+        if bvh.tri_pass[j] != PASS_GLASS:
+            break
+        g = bvh.glass_tint[bvh.tri_mat[j]]
+        w0, w1, w2 = w0 * g[0], w1 * g[1], w2 * g[2]
+        if w0 <= 0.0 and w1 <= 0.0 and w2 <= 0.0:
+            break
+        step = 1e-6 * max(1.0, t)
+        run += t + step
+        ox, oy, oz = ox + t * dx + step * dx, oy + t * dy + step * dy, oz + t * dz + step * dz
+    return a0, a1, a2, first, back
+
+
+@njit(cache=True, inline="always")
+def _halton(i, base, rot):
+    f = 1.0 / base
+    r = 0.0
+    inv = f
+    while i > 0:
+        r += f * (i % base)
+        i //= base
+        f *= inv
+    r += rot
+    return r - math.floor(r)
+
+
+@njit(cache=True)
+def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, out):
+    """The lights a probe sees as deltas: rows (dx, dy, dz, r, g, b) of
+    out, the direction and the irradiance at normal incidence, each behind
+    its shadow ray (glass tints). First n_emit points on the area emitters
+    (by power, stratified by a rotated Halton sequence; each carries L_e
+    cos_e / (d^2 n p_A) under its MIS weight against the rays, p_A the
+    point's area density), then every punctual light and sun. Returns the
+    rows used."""
+    k = 0
+    ne = surf.emitters.shape[0]
+    if ne > 0 and n_emit > 0:
+        key = np.uint64(seed) ^ np.uint64(STREAM_PROBE_EMITTERS)
+        r0, r1, r2 = rand01(key, probe, 0), rand01(key, probe, 1), rand01(key, probe, 2)
+        for j in range(n_emit):
+            tri, px, py, pz, p_tri, b1, b2 = sample_emitter(surf, (j + r0) / n_emit - math.floor((j + r0) / n_emit),
+                                                            _halton(j + 1, 2, r1), _halton(j + 1, 3, r2))
+            dx, dy, dz = px - ox, py - oy, pz - oz
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 <= 0.0 or p_tri <= 0.0:
+                continue
+            dist = math.sqrt(d2)
+            dx, dy, dz = dx / dist, dy / dist, dz / dist
+            nx, ny, nz = triangle_normal(surf.corners, tri)
+            ce = -(nx * dx + ny * dy + nz * dz)   # the emitter's cosine toward the probe
+            if ce < 0.0:
+                if not surf.double_sided[surf.tri_material[tri]]:
+                    continue
+                ce = -ce
+            er, eg, eb = emission_at(surf, tri, b1, b2)
+            p_a = p_tri / surf.tri_area[tri]
+            p_e = p_a * d2 / max(ce, 1e-300)
+            f = ce / (d2 * n_emit * p_a) * (n_emit * p_e / (ray_density + n_emit * p_e))
+            # short of the emitter: its own triangle is not in the way
+            t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - 1e-6))
+            out[k, 0], out[k, 1], out[k, 2] = dx, dy, dz
+            out[k, 3], out[k, 4], out[k, 5] = er * f * t0, eg * f * t1, eb * f * t2
+            k += 1
+    for li in range(surf.light_kind.shape[0]):
+        kind = surf.light_kind[li]
+        if kind == LIGHT_DIRECTIONAL:
+            dx, dy, dz = -surf.light_dir[li, 0], -surf.light_dir[li, 1], -surf.light_dir[li, 2]
+            dist = np.inf
+            e = 1.0
+        else:
+            dx = surf.light_pos[li, 0] - ox
+            dy = surf.light_pos[li, 1] - oy
+            dz = surf.light_pos[li, 2] - oz
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dist <= 0.0:
+                continue
+            dx, dy, dz = dx / dist, dy / dist, dz / dist
+            e = 1.0 / (dist * dist)
+            if kind == LIGHT_SPOT:
+                e *= spot_falloff(-(dx * surf.light_dir[li, 0] + dy * surf.light_dir[li, 1]
+                                    + dz * surf.light_dir[li, 2]), surf.light_cones[li, 0], surf.light_cones[li, 1])
+        if e <= 0.0:
+            continue
+        t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist)
+        out[k, 0], out[k, 1], out[k, 2] = dx, dy, dz
+        out[k, 3] = surf.light_intensity[li, 0] * e * t0
+        out[k, 4] = surf.light_intensity[li, 1] * e * t1
+        out[k, 5] = surf.light_intensity[li, 2] * e * t2
+        k += 1
+    return k
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bounced, points, first, dirs,
+                 irr_dirs, depth_dirs, max_dist, n_emit, seed, sh, irr, depth, backs):
+    """Per probe i at points[i] (its index in the grid: first + i):
+    sh[i] (9, 3) the radiance's projection: the rays `dirs` reading the
+    bounced light (4 pi / K sum L Y) plus the deltas (_deltas: E Y);
+    irr[i] (IRR, IRR, 3) the irradiance at the normals irr_dirs (texel
+    major) from the same rays and deltas; depth[i] (DEPTH, DEPTH, 2) the
+    mean and mean square distance (capped at max_dist) over the
+    depth_dirs rays of each texel (DEPTH_SUB^2 of them, texel-major);
+    backs[i] the share of all its rays whose first hit is a one-sided
+    surface's back."""
+    n = points.shape[0]
+    k_n = dirs.shape[0]
+    per = DEPTH_SUB * DEPTH_SUB
+    n_irr = irr_dirs.shape[0]
+    for i in prange(n):
+        stack = np.empty(STACK_SIZE, np.int32)
+        y = np.empty(SH)
+        acc = np.zeros((SH, 3))
+        eacc = np.zeros((n_irr, 3))
+        delta = np.empty((n_emit + surf.light_kind.shape[0], 6))
+        ox, oy, oz = points[i, 0], points[i, 1], points[i, 2]
+        nb = 0
+        f = 4.0 * math.pi / k_n
+        density = k_n / (4.0 * math.pi)
+        for k in range(k_n):
+            dx, dy, dz = dirs[k, 0], dirs[k, 1], dirs[k, 2]
+            r, g, b, t, back = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, pieces,
+                                               bounced, ox, oy, oz, dx, dy, dz, density, n_emit)
+            if back:
+                nb += 1
+            if r == 0.0 and g == 0.0 and b == 0.0:
+                continue
+            sh_basis(dx, dy, dz, y)
+            for c in range(SH):
+                acc[c, 0] += r * y[c]
+                acc[c, 1] += g * y[c]
+                acc[c, 2] += b * y[c]
+            for q in range(n_irr):
+                cq = dx * irr_dirs[q, 0] + dy * irr_dirs[q, 1] + dz * irr_dirs[q, 2]
+                if cq > 0.0:
+                    eacc[q, 0] += r * cq
+                    eacc[q, 1] += g * cq
+                    eacc[q, 2] += b * cq
+        for c in range(SH):
+            for ch in range(3):
+                acc[c, ch] *= f
+        for q in range(n_irr):
+            for ch in range(3):
+                eacc[q, ch] *= f
+        m = _deltas(bvh, surf, stack, ox, oy, oz, seed, first + i, n_emit, density, delta)
+        for k in range(m):
+            dx, dy, dz = delta[k, 0], delta[k, 1], delta[k, 2]
+            sh_basis(dx, dy, dz, y)
+            for c in range(SH):
+                for ch in range(3):
+                    acc[c, ch] += delta[k, 3 + ch] * y[c]
+            for q in range(n_irr):
+                cq = dx * irr_dirs[q, 0] + dy * irr_dirs[q, 1] + dz * irr_dirs[q, 2]
+                if cq > 0.0:
+                    for ch in range(3):
+                        eacc[q, ch] += delta[k, 3 + ch] * cq
+        for c in range(SH):
+            for ch in range(3):
+                sh[i, c, ch] = acc[c, ch]
+        for q in range(n_irr):
+            for ch in range(3):
+                irr[i, q // IRR, q % IRR, ch] = eacc[q, ch]
+        for tex in range(DEPTH * DEPTH):
+            s1 = s2 = 0.0
+            for q in range(per):
+                dd = depth_dirs[tex * per + q]
+                r, g, b, t, back = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut,
+                                                   pieces, bounced, ox, oy, oz, dd[0], dd[1], dd[2], density, n_emit)
+                if back:
+                    nb += 1
+                t = min(t, max_dist)
+                s1 += t
+                s2 += t * t
+            depth[i, tex // DEPTH, tex % DEPTH, 0] = s1 / per
+            depth[i, tex // DEPTH, tex % DEPTH, 1] = s2 / per
+        backs[i] = nb / (k_n + DEPTH * DEPTH * per)
+
+
+def texel_directions(size: int, sub: int = 1) -> np.ndarray:
+    """(size^2 sub^2, 3): per octahedral texel (row v, column u), sub^2
+    unit directions at the centres of its sub-texels."""
+    out = np.empty((size * size * sub * sub, 3))
+    k = 0
+    for row in range(size):
+        for col in range(size):
+            for a in range(sub):
+                for b in range(sub):
+                    out[k] = oct_decode((col + (b + 0.5) / sub) / size, (row + (a + 0.5) / sub) / size)
+                    k += 1
+    return out
+
+
+@dataclass(frozen=True)
+class ProbeShot:
+    """What every block of probes shares (sent to a worker once)."""
+    bvh: object
+    surf: object
+    voxels: object          # solve.gather.GatherVoxels
+    bounced: np.ndarray     # (n, 3) the voxels' bounced radiosity rho H
+    dirs: np.ndarray
+    irr_dirs: np.ndarray
+    depth_dirs: np.ndarray
+    max_dist: float
+    n_emit: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class ProbeBlock:
+    number: int
+    first: int
+    points: np.ndarray
+
+    def describe(self) -> str:
+        return f"probe block {self.number} ({len(self.points):,} probes)"
+
+
+@dataclass(frozen=True)
+class ProbePart:
+    sh: np.ndarray
+    irradiance: np.ndarray
+    depth: np.ndarray
+    backs: np.ndarray
+
+
+PROBE_BLOCK = 1024   # probes per task (each its own: any split gives the same bits)
+
+
+def probe_block(block: ProbeBlock, shot: ProbeShot) -> ProbePart:
+    """The pure task: a block's probes gathered."""
+    n = len(block.points)
+    sh = np.zeros((n, SH, 3))
+    irr = np.zeros((n, IRR, IRR, 3))
+    depth = np.zeros((n, DEPTH, DEPTH, 2))
+    backs = np.zeros(n)
+    g = shot.voxels
+    probe_kernel(shot.bvh, shot.surf, g.double, g.mat_of, g.normal, g.centroid, g.cut, g.pieces, shot.bounced,
+                 np.ascontiguousarray(block.points, np.float64), int(block.first), shot.dirs, shot.irr_dirs,
+                 shot.depth_dirs, shot.max_dist, int(shot.n_emit), int(shot.seed), sh, irr, depth, backs)
+    return ProbePart(sh, irr, depth, backs)
+
+
+def bake_probes(prepared, solution, grid, copies: int, seed: int = 0, executor=None, progress=None) -> ProbeGrid:
+    """The probes of `grid` ((origin, spacing, dims): grid_for) gathered
+    from the solution with 12 x copies rays each."""
+    from ..solve.gather import GatherVoxels
+    from ..tasks import run_tasks
+    origin, spacing, dims = grid
+    points = probe_positions(origin, spacing, dims)
+    vox = solution.voxels
+    bounced = np.ascontiguousarray(solution.radiosity - vox.emission, np.float64)   # the emitters: sampled
+    shot = ProbeShot(prepared.bvh.arrays, prepared.surfaces.arrays, GatherVoxels.of(prepared, vox),
+                     np.maximum(bounced, 0.0), ray_set(int(copies), seed), texel_directions(IRR),
+                     texel_directions(DEPTH, DEPTH_SUB), MAX_DIST * spacing, EMITTER_SAMPLES, int(seed))
+    blocks = [ProbeBlock(j, a, points[a:a + PROBE_BLOCK]) for j, a in enumerate(range(0, len(points), PROBE_BLOCK))]
+
+    parts = run_tasks(executor, probe_block, blocks, shot, "probes",
+                      None if progress is None else lambda j, _: progress(len(blocks[j].points)))
+    sh = np.concatenate([p.sh for p in parts])
+    irr = np.concatenate([p.irradiance for p in parts])
+    depth = np.concatenate([p.depth for p in parts])
+    backs = np.concatenate([p.backs for p in parts])
+    return ProbeGrid(np.asarray(origin, np.float64), float(spacing), np.asarray(dims, np.int64),
+                     sh.astype(np.float32), np.maximum(irr, 0.0).astype(np.float32), depth.astype(np.float32),
+                     backs < BACKFACE_INVALID, 12 * int(copies))
