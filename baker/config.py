@@ -145,7 +145,7 @@ class ProbeConfig:
     bounds); copies: rotated icosahedra of 12 rays each per probe (0: no
     probes)."""
     spacing: float | None = None
-    budget: int = 4096
+    budget: int = 2048
     copies: int = 64
 
     def __post_init__(self):

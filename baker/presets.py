@@ -66,7 +66,7 @@ PRESETS = {p.name: p for p in (
                         max_bounces=16, gather_rays=64),
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300),
            texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0,
-           uv="per-triangle"),
+           uv="per-triangle", probes=ProbeConfig(budget=256, copies=16)),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
            SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=2.0, tolerance=1e-2,
@@ -74,14 +74,14 @@ PRESETS = {p.name: p for p in (
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=200,
-           texel_gather_spacing=1.0, texels_across=64, probes=ProbeConfig(budget=4096, copies=64)),
+           texel_gather_spacing=1.0, texels_across=64, probes=ProbeConfig(budget=2048, copies=64)),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
            LightcutsConfig(direct_vpls=131_072, sky_vpls=4096, epsilon=0.01, cap=2000),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
            texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0,
-           texels_across=128, probes=ProbeConfig(budget=16384, copies=256)),
+           texels_across=128, probes=ProbeConfig(budget=8192, copies=256)),
 )}
 
 

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from baker.startup import run
-from baker.cli_args import EXPOSURE, IMAGE_SIDE, command_parser, integer
+from baker.cli_args import EXPOSURE, IMAGE_SIDE, command_parser, integer, number
 from baker.errors import VoxgiError
 
 from .renderer import MODES
@@ -58,16 +58,46 @@ def cmd_snapshot(args):
     check_output_path(args.output, (".png", ".exr"), inputs=[args.bake])
     if args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
+    objects = _objects(args)
     bake = _read(args.bake)
+    if objects and bake.probes is None:
+        raise VoxgiError("the bake holds no irradiance probes for --object: bake it again without --no-probes",
+                         args.bake)
     cam = _camera(bake, args.camera)
     from baker.progress import bar
     with bar(args.frames if args.mode == "preview" else 0, "preview", "frame", args.mode == "preview") as b:
         img = snapshot(bake, cam, args.width, args.height, args.mode, args.samples, args.bicubic,
-                       frames=args.frames, per_frame=args.vpls_per_frame, progress=b.update)
+                       frames=args.frames, per_frame=args.vpls_per_frame, progress=b.update, objects=objects)
     checkpoint()
     write_image(args.output, img, args.exposure)
     print(f"wrote {args.output}  ({args.width}x{args.height}, {args.mode})")
     return 0
+
+
+def _objects(args):
+    """The --object spheres asked for, checked (one line, before any work)."""
+    from .objects import Sphere
+    if not args.object:
+        if args.at is not None or args.radius is not None or args.object_albedo is not None:
+            raise VoxgiError("--at, --radius and --object-albedo place an --object sphere: add --object sphere")
+        return ()
+    if args.at is None or args.radius is None:
+        raise VoxgiError("--object sphere needs --at X,Y,Z and --radius R")
+    if args.mode != "lightmap":
+        raise VoxgiError("--object is drawn in the lightmap view (--mode lightmap)")
+    albedo = args.object_albedo if args.object_albedo is not None else 0.8
+    return (Sphere(tuple(args.at), float(args.radius), (albedo,) * 3),)
+
+
+def _vector(text):
+    import math
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z, got {text!r}") from None
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
+    return v
 
 
 def cmd_glinfo(args):
@@ -126,6 +156,11 @@ def build_parser():
     p.add_argument("--samples", type=integer(1, 16), default=4, help="samples per pixel along each axis (default 4)")
     p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
+    p.add_argument("--object", choices=("sphere",),
+                   help="draw a moving object lit by the bake's irradiance probes (it does not shadow the room)")
+    p.add_argument("--at", type=_vector, metavar="X,Y,Z", help="the object's centre")
+    p.add_argument("--radius", type=number(0, 1e9, lo_open=True), metavar="R", help="the sphere's radius")
+    p.add_argument("--object-albedo", type=number(0, 1), metavar="A", help="the object's albedo (default 0.8)")
     p.set_defaults(func=cmd_snapshot)
 
     p = sub.add_parser("glinfo", help="check headless OpenGL (EGL) and build every shipped shader",

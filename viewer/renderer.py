@@ -81,6 +81,7 @@ class Renderer:
                 tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
                 self.emit_textures[i] = tex
         self.draws = draw_groups(bake)
+        self.probe_objects = None   # objects.ProbeObjects, made when an object is first drawn
         self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
@@ -125,9 +126,10 @@ class Renderer:
         """Near and far planes around the scene's bounds."""
         return self.extent * 1e-4, self.extent * 4.0
 
-    def render(self, camera, width, height, mode="lightmap", exposure=1.0, tonemap=True, bicubic=False):
+    def render(self, camera, width, height, mode="lightmap", exposure=1.0, tonemap=True, bicubic=False, objects=()):
         """Draws the bake seen by `camera` (a scene Camera or FlyCamera)
-        into the bound framebuffer (viewport width x height)."""
+        into the bound framebuffer (viewport width x height), with the
+        moving `objects` (objects.Sphere) lit by its probes."""
         import moderngl
         ctx = self.ctx
         near, far = self.clip_range(camera)
@@ -174,8 +176,15 @@ class Renderer:
         if glass:
             ctx.disable(moderngl.BLEND)
             ctx.fbo.depth_mask = True
+        if objects:   # (after the glass: an object behind a pane is not tinted by it)
+            if self.probe_objects is None:
+                from .objects import ProbeObjects
+                self.probe_objects = ProbeObjects(ctx, self.bake)
+            self.probe_objects.draw(vp, objects, tonemap, exposure)
 
     def release(self):
+        if self.probe_objects is not None:
+            self.probe_objects.release()
         for prog, vao in (*self.variants.values(), *self.sky_programs.values()):
             vao.release()
             prog.release()

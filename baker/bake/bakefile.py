@@ -140,16 +140,19 @@ def _probe_entry(b, pr) -> dict:
     """The probe block of the root extension: the grid, then four
     bufferViews (little-endian, probe-major, x fastest, then y, then z):
     sh float32 [probe][9][rgb], the incident radiance's real spherical
-    harmonics; irradiance float32 [probe][row][column][rgb] of an
-    octahedral map of normals; depth float32 [probe][row][column][mean,
+    harmonics; irradiance float16 [probe][row][column][rgb] of an
+    octahedral map of normals, times `scale` (a power of two); depth float32 [probe][row][column][mean,
     mean square] of an octahedral distance map; valid uint8 [probe]."""
+    from ..probes.gather import half_scale
+    k = half_scale(pr.irradiance)
     return {"version": PROBES_VERSION,
             "origin": [float(v) for v in pr.origin], "spacing": float(pr.spacing),
             "dims": [int(v) for v in pr.dims], "rays": int(pr.rays),
             "sh": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.sh, "<f4").tobytes()),
                    "coefficients": list(SH_ORDER), "unit": "W m^-2 sr^-1"},
-            "irradiance": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.irradiance, "<f4").tobytes()),
-                           "size": int(pr.irradiance.shape[1]), "mapping": "octahedral", "unit": "W m^-2"},
+            "irradiance": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.irradiance * k, "<f2").tobytes()),
+                           "size": int(pr.irradiance.shape[1]), "mapping": "octahedral", "unit": "W m^-2",
+                           "scale": k},
             "depth": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.depth, "<f4").tobytes()),
                       "size": int(pr.depth.shape[1]), "mapping": "octahedral", "fields": ["mean", "meanSquare"]},
             "valid": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.valid, np.uint8).tobytes())}}
@@ -181,7 +184,10 @@ def _read_probes(blob, doc, entry):
     if list(entry["sh"].get("coefficients", [])) != list(SH_ORDER):
         raise ValueError("probe coefficients")
     out = []
-    for key, dtype, shape in (("sh", "<f4", (n, SH, 3)), ("irradiance", "<f4", (n, IRR, IRR, 3)),
+    scale = float(entry["irradiance"].get("scale", 0))
+    if not (np.isfinite(scale) and scale > 0 and np.log2(scale) == np.round(np.log2(scale))):
+        raise ValueError("probe irradiance scale")
+    for key, dtype, shape in (("sh", "<f4", (n, SH, 3)), ("irradiance", "<f2", (n, IRR, IRR, 3)),
                               ("depth", "<f4", (n, DEPTH, DEPTH, 2)), ("valid", np.uint8, (n,))):
         data = _view_bytes(blob, doc, entry[key]["bufferView"])
         want = int(np.prod(shape)) * np.dtype(dtype).itemsize
@@ -195,7 +201,8 @@ def _read_probes(blob, doc, entry):
         raise ValueError("negative probe irradiance or distances")
     if valid.max(initial=0) > 1:
         raise ValueError("probe validity other than 0 or 1")
-    return ProbeGrid(origin, spacing, np.array(dims, np.int64), sh.astype(np.float32), irr.astype(np.float32),
+    irr = (irr.astype(np.float64) / scale).astype(np.float32)
+    return ProbeGrid(origin, spacing, np.array(dims, np.int64), sh.astype(np.float32), irr,
                      depth.astype(np.float32), valid.astype(bool), rays)
 
 

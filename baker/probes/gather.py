@@ -500,5 +500,21 @@ def bake_probes(prepared, solution, grid, copies: int, seed: int = 0, executor=N
     depth = np.concatenate([p.depth for p in parts])
     backs = np.concatenate([p.backs for p in parts])
     return ProbeGrid(np.asarray(origin, np.float64), float(spacing), np.asarray(dims, np.int64),
-                     sh.astype(np.float32), np.maximum(irr, 0.0).astype(np.float32), depth.astype(np.float32),
+                     sh.astype(np.float32), half_exact(np.maximum(irr, 0.0)), depth.astype(np.float32),
                      backs < BACKFACE_INVALID, 12 * int(copies))
+
+
+HALF_MAX = 60000.0
+
+
+def half_scale(values) -> float:
+    """A power of two that brings values under HALF_MAX (1 where they are)."""
+    peak = float(np.max(values)) if np.size(values) else 0.0
+    return 1.0 if peak <= HALF_MAX else float(2.0 ** -np.ceil(np.log2(peak / HALF_MAX)))
+
+
+def half_exact(values) -> np.ndarray:
+    """float32 values as the bake file's float16 (times half_scale) holds
+    them: what is baked is what is read back, bit for bit."""
+    k = half_scale(values)
+    return ((np.asarray(values, np.float64) * k).astype(np.float16).astype(np.float64) / k).astype(np.float32)

@@ -3,9 +3,11 @@ of the viewer's shader: shaders/probes.glsl computes the same).
 
 A point x with normal n reads the eight probes of the grid cell that
 holds it (clamped to the grid), each weighted by
-- its trilinear weight;
-- a smooth backface term ((1 + cos) / 2)^2 + 0.2, cos between n and the
-  direction to the probe (light behind the surface counts less);
+- its trilinear weight (DDGI's backface term, which favours the probes
+  in front of the surface, is left out: the light field a moving object
+  samples is the room's, which the probes behind its surface hold as
+  well, and beside a lamp the term bent the Cornell sphere's sides 20%
+  dark; what it was for, probes behind walls, the two tests below do);
 - Chebyshev's visibility bound against the probe's distance moments in
   the direction of x (lifted BIAS spacings along n): 1 where x is nearer
   than the mean distance, else var / (var + (d - mean)^2), cubed, and 0
@@ -120,10 +122,6 @@ def interpolate(grid, points, normals, anchors=None, bvh=None) -> np.ndarray:
         w = np.prod(np.where(off == 1, frac, 1.0 - frac), axis=1)
         flat = idx[:, 0] + dims[0] * (idx[:, 1] + dims[1] * idx[:, 2])
         p = grid.origin + s * idx
-        to_probe = p - points
-        dist = np.linalg.norm(to_probe, axis=1)
-        cos = np.einsum("ij,ij->i", to_probe / np.maximum(dist, 1e-12)[:, None], normals)
-        w = w * (((1 + cos) / 2) ** 2 + 0.2)
         v = lifted - p
         d = np.linalg.norm(v, axis=1)
         row, col = oct_texel(v / np.maximum(d, 1e-12)[:, None], size)
