@@ -344,3 +344,33 @@ def test_a_snapshot_sphere_against_the_wall_of_the_dark_room_is_black(rooms_bake
             assert (img[mask] == 0).all()
         else:
             assert (img[mask].sum(axis=1) > 0).all()
+
+
+def test_the_window_drops_and_moves_a_sphere(furnace_bake, tmp_path):
+    """voxview's window under Xvfb: O drops a sphere in front of the
+    camera, the arrow keys move it; the last frame differs from the same
+    walk without it."""
+    import shutil
+    import subprocess
+    import sys
+    if not shutil.which("xvfb-run"):
+        pytest.skip("Xvfb is not installed (scripts/setup.sh installs it)")
+    from PIL import Image
+    path = tmp_path / "f.glb"
+    write_bake(str(path), furnace_bake.bake)
+    scripts = {"sphere": [{"frame": 1, "key": "O"}, {"frame": 2, "key": "RIGHT", "action": "press"},
+                          {"frame": 7, "key": "RIGHT", "action": "release"}], "none": []}
+    shots = {}
+    for name, script in scripts.items():
+        (tmp_path / f"{name}.json").write_text(json.dumps(script))
+        out = tmp_path / f"{name}.png"
+        r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 800x600x24", sys.executable, "-m", "viewer", str(path),
+                            "--script", str(tmp_path / f"{name}.json"), "--frames", "8", "--screenshot", str(out),
+                            "--width", "160", "--height", "120", "--exposure", "0"],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        shots[name] = np.asarray(Image.open(out).convert("RGB"), float)
+    diff = np.abs(shots["sphere"] - shots["none"]).sum(axis=2) > 10
+    assert 50 < diff.sum() < diff.size // 2
+    cols = np.nonzero(diff.any(axis=0))[0]
+    assert cols.mean() > 80   # moved right of the centre

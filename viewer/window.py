@@ -9,6 +9,8 @@ glfw). Keys and mouse become `Controls` for the pure-maths camera
     M or F1 .. F5   view: lightmap, irradiance, albedo, texel checker, pages
     P               progressive instant-radiosity preview on/off (restarts when the camera moves)
     B               bicubic lightmap filtering on/off   Esc     quit
+    O               drop a sphere in front of the camera, lit by the bake's probes (again: remove it)
+    arrow keys      move the sphere (left, right, away, nearer); Page Up / Page Down: up, down
 
 Scripted input (`--script FILE.json`, for tests and demos): a list of
 events {"frame": n, "key": "W", "action": "press" | "release"},
@@ -30,6 +32,9 @@ from .camera import Controls, FlyCamera
 from .renderer import MODES
 
 MOVE_KEYS = {"W": (0, 1), "S": (0, -1), "D": (1, 1), "A": (1, -1), "E": (2, 1), "Q": (2, -1)}
+OBJECT_KEYS = {"RIGHT": (0, 1), "LEFT": (0, -1), "UP": (1, 1), "DOWN": (1, -1), "PAGEUP": (2, 1), "PAGEDOWN": (2, -1)}
+SPHERE_SIZE = 0.03    # the dropped sphere's radius, a share of the scene's diagonal
+SPHERE_AHEAD = 0.12   # ... and how far ahead of the camera it is dropped
 EV_STEP = 0.5
 
 
@@ -148,6 +153,8 @@ class Walkthrough:
         if mode == "preview":
             self.mode = "lightmap"
         self.preview = None
+        self.sphere = None   # objects.Sphere the user dropped (O), lit by the probes
+        self.note = ""
 
     # -- glfw ---------------------------------------------------------------
     def _open(self):
@@ -170,7 +177,9 @@ class Walkthrough:
         return glfw, win
 
     def _callbacks(self, glfw, win):
-        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBP0123456789"}
+        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBPO0123456789"}
+        names.update({glfw.KEY_LEFT: "LEFT", glfw.KEY_RIGHT: "RIGHT", glfw.KEY_UP: "UP", glfw.KEY_DOWN: "DOWN",
+                      glfw.KEY_PAGE_UP: "PAGEUP", glfw.KEY_PAGE_DOWN: "PAGEDOWN"})
         names.update({glfw.KEY_LEFT_SHIFT: "SHIFT", glfw.KEY_RIGHT_SHIFT: "SHIFT", glfw.KEY_F12: "F12",
                       glfw.KEY_ESCAPE: "ESCAPE", glfw.KEY_EQUAL: "+", glfw.KEY_KP_ADD: "+", glfw.KEY_MINUS: "-",
                       glfw.KEY_KP_SUBTRACT: "-", glfw.KEY_F1: "F1", glfw.KEY_F2: "F2", glfw.KEY_F3: "F3",
@@ -230,11 +239,45 @@ class Walkthrough:
             self.bicubic = not self.bicubic
         elif key == "P":
             self.preview_on = not self.preview_on
+        elif key == "O":
+            self._toggle_sphere(camera)
         elif key == "F12":
             self._screenshot(ctx)
         elif key == "ESCAPE":
             return camera, False
         return camera, True
+
+    def _extent(self) -> float:
+        lo, hi = self.bake.scene.bounds()
+        return float(np.linalg.norm(hi - lo)) or 1.0
+
+    def _toggle_sphere(self, camera):
+        from .objects import Sphere
+        if self.sphere is not None:
+            self.sphere = None
+        elif self.bake.probes is None:
+            self.note = "no probes in this bake (baked with --no-probes)"
+        else:
+            e = self._extent()
+            centre = np.asarray(camera.position) + SPHERE_AHEAD * e * camera.forward
+            self.sphere = Sphere(tuple(float(v) for v in centre), SPHERE_SIZE * e)
+
+    def _move_sphere(self, camera, dt):
+        """The sphere moved by the arrow keys held: along the camera's right,
+        its forward on the ground plane, and up."""
+        from dataclasses import replace as _replace
+        if self.sphere is None:
+            return
+        flat = np.array([camera.forward[0], 0.0, camera.forward[2]])
+        flat /= np.linalg.norm(flat) or 1.0
+        axes = (camera.right, flat, np.array([0.0, 1.0, 0.0]))
+        step = np.zeros(3)
+        for k, (axis, sign) in OBJECT_KEYS.items():
+            if k in self.input.held:
+                step += sign * axes[axis]
+        if step.any():
+            c = np.asarray(self.sphere.center) + 0.1 * self._extent() * dt * step
+            self.sphere = _replace(self.sphere, center=tuple(float(v) for v in c))
 
     def _preview_frame(self, ctx, renderer, camera, w, h):
         """One frame of the progressive preview: restarts when the camera or
@@ -293,6 +336,7 @@ class Walkthrough:
                         break
                 self.input.pressed.clear()
                 camera = camera.step(dt, self.input.controls())
+                self._move_sphere(camera, dt)
                 w, h = glfw.get_framebuffer_size(win)
                 self.size = (w, h)
                 if self.preview_on:
@@ -300,7 +344,8 @@ class Walkthrough:
                 else:
                     ctx.screen.use()
                     ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-                    renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic)
+                    objects = (self.sphere,) if self.sphere is not None and self.mode == "lightmap" else ()
+                    renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic, objects)
                 fps_n += 1
                 if now - fps_t >= 0.5:
                     fps, fps_t, fps_n = fps_n / (now - fps_t), now, 0
@@ -308,7 +353,7 @@ class Walkthrough:
                 view = (f"preview {self.preview.used} VPLs" if self.preview_on and self.preview is not None
                         else f"{self.mode}{' bicubic' if self.bicubic else ''}")
                 overlay.draw(f"{rate}   {view}   EV {self.exposure_ev:+.1f}   F1-F5 views, P preview, "
-                             f"+/- exposure, 1-9 cameras", w, h)
+                             f"+/- exposure, 1-9 cameras, O sphere{'   ' + self.note if self.note else ''}", w, h)
                 frame += 1
                 if self.frames is not None and frame >= self.frames:
                     if self.screenshot_path:
