@@ -129,3 +129,20 @@ def test_three_js_shows_what_we_render(web, bakes, tmp_path, name):
     assert abs(lam[visible].mean() / ours[visible].mean() - 1) < 0.01
     std = three_image(bakes[name], w, h, exposure, "standard", tmp_path)
     assert abs(std[visible].mean() / ours[visible].mean() - 1) < 0.05
+
+
+def test_three_js_lights_a_sphere_with_the_probes(web, tmp_path, make_scene):
+    """examples/three: a sphere lit only by THREE.LightProbe from the
+    bake's probe SH, in a furnace (irradiance 2 everywhere): its pixels
+    read albedo x 2 / pi, as voxview's sphere does."""
+    from scenes.generate import furnace_box
+    scene = make_scene(furnace_box(albedo=0.5, emission=1.0), "web_probe_furnace")
+    path = tmp_path / "f.glb"
+    write_bake(str(path), bake_scene(scene, bake_config("preview", resolution=16, photons=50_000,
+                                                        probe_spacing=0.25)).bake)
+    png = tmp_path / "sphere.png"
+    node("probes.mjs", path, png, 64, 64, "0.5,0.5,0.6", 0.15, 0.6)
+    img = np.asarray(Image.open(png).convert("RGB"), float) / 255
+    c = img[26:38, 26:38].reshape(-1, 3)   # the sphere's middle (the camera looks at it from z = 0.1)
+    linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    assert np.abs(linear / (0.6 * 2 / np.pi) - 1).max() < 0.04, linear.mean(axis=0)
