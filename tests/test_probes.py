@@ -14,7 +14,7 @@ from baker.errors import BakeFileError, ConfigError
 from baker.probes import grid_for, interpolate
 from baker.probes.gather import MAX_PROBES, SH_BAND, ray_set, sh_basis_np
 from baker.probes.sample import irradiance_map_at, probe_irradiance_sh
-from scenes.generate import furnace_box, two_rooms
+from scenes.generate import closed_box, furnace_box, thin_wall, two_rooms
 from tests.conftest import cli
 from tests.hostile import resign_bake, split_glb
 
@@ -374,3 +374,28 @@ def test_the_window_drops_and_moves_a_sphere(furnace_bake, tmp_path):
     assert 50 < diff.sum() < diff.size // 2
     cols = np.nonzero(diff.any(axis=0))[0]
     assert cols.mean() > 80   # moved right of the centre
+
+
+@pytest.mark.parametrize("builder", [thin_wall, closed_box], ids=["thin_wall", "closed_box"])
+def test_a_sphere_sees_only_its_own_side(make_scene, builder):
+    """Beside a double-sided wall thinner than a cell, a sphere on the
+    dark side reads exactly 0 and one on the lit side is lit; the probes
+    inside a closed box are invalid or dark, and a sphere in it reads 0."""
+    from baker.scene.prepared import prepare
+    scene = make_scene(builder(), f"probe_{builder.__name__}")
+    g = bake_scene(scene, small(probe_spacing=0.1)).bake.probes
+    bvh = prepare(scene).bvh.arrays
+    rng = np.random.default_rng(5)
+    nrm = rng.normal(size=(200, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    r = 0.05
+    if builder is thin_wall:
+        dark, lit = (1.0 + r + 0.002, 0.5, 0.5), (1.0 - r - 0.004, 0.5, 0.5)
+    else:
+        dark, lit = (1.0, 0.55, 1.0), (0.3, 1.0, 0.3)   # in the closed box, over its inner object; in the room
+        inside = np.all((g.positions() > [0.6, 0.0, 0.6]) & (g.positions() < [1.4, 0.8, 1.4]), axis=1)
+        assert (~g.valid[inside] | (g.irradiance[inside] == 0).all(axis=(1, 2, 3))).all()
+    for centre, want_dark in ((dark, True), (lit, False)):
+        c = np.array(centre)
+        e = interpolate(g, c + r * nrm, nrm, np.repeat(c[None], len(nrm), 0), bvh).sum(axis=1)
+        assert (e == 0).all() if want_dark else (e > 0).all(), (centre, e.min(), e.max())
