@@ -82,6 +82,7 @@ class ProbeObjects:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
+        self.masks = {}   # (centre, radius) -> (first probe, mask texture) of the objects drawn last
         self.bvh = prepare(bake.scene).bvh.arrays
 
     def _program(self, tonemap):
@@ -105,22 +106,26 @@ class ProbeObjects:
         self.irr.use(3)
         self.depth.use(4)
         for s in spheres:
-            lo, mask = probe_mask(g, s.center, s.radius, self.bvh)
-            tex = self.ctx.texture3d(mask.shape[::-1], 1, mask.tobytes(), dtype="u1")
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            try:
-                tex.use(5)
-                prog["u_mask_lo"].value = tuple(int(v) for v in lo)
-                prog["u_center"].value = tuple(float(v) for v in s.center)
-                prog["u_radius"].value = float(s.radius)
-                prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
-                vao.render(moderngl.TRIANGLES)
-            finally:
-                tex.release()
+            key = (tuple(s.center), float(s.radius))
+            if key not in self.masks:   # an object that stands still keeps its mask
+                for old in self.masks.values():
+                    old[1].release()
+                self.masks.clear()
+                lo, mask = probe_mask(g, s.center, s.radius, self.bvh)
+                tex = self.ctx.texture3d(mask.shape[::-1], 1, mask.tobytes(), dtype="u1")
+                tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                self.masks[key] = (lo, tex)
+            lo, tex = self.masks[key]
+            tex.use(5)
+            prog["u_mask_lo"].value = tuple(int(v) for v in lo)
+            prog["u_center"].value = tuple(float(v) for v in s.center)
+            prog["u_radius"].value = float(s.radius)
+            prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
+            vao.render(moderngl.TRIANGLES)
 
     def release(self):
         for prog, vao in self.programs.values():
             vao.release()
             prog.release()
-        for obj in (self.irr, self.depth, self.vbo):
+        for obj in (self.irr, self.depth, self.vbo, *(t for _, t in self.masks.values())):
             obj.release()

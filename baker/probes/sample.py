@@ -22,6 +22,10 @@ clients that take SH do.)
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.traverse import transmittance
 
 BIAS = 0.05      # spacings along the normal, for the visibility test
 CRUSH = 0.05     # visibility weights below this count for nothing
@@ -87,14 +91,26 @@ def oct_texel(d, size):
     return row, col
 
 
+@njit(cache=True)
+def _transmitted(bvh, a, u, dist, out):
+    """out[i] the largest channel of the light that crosses from a[i]
+    along u[i] for dist[i]; one thread: an object's few dozen rays per
+    frame must not leave numba's workers spinning beside the viewer's
+    software rasterizer."""
+    stack = np.empty(STACK_SIZE, np.int32)
+    for i in range(a.shape[0]):
+        t0, t1, t2 = transmittance(bvh, stack, a[i, 0], a[i, 1], a[i, 2], u[i, 0], u[i, 1], u[i, 2], 0.0, dist[i])
+        out[i] = max(t0, t1, t2)
+
+
 def _sees(bvh, a, b) -> np.ndarray:
     """(n,) 1.0 where nothing opaque lies between a[i] and b[i], else 0."""
-    from ..kernels.traverse import transmittance_batch
     d = b - a
     dist = np.linalg.norm(d, axis=1)
     u = d / np.maximum(dist, 1e-300)[:, None]
-    t = transmittance_batch(bvh, np.ascontiguousarray(a), np.ascontiguousarray(u), 0.0, dist)
-    return np.where((dist <= 0) | (np.asarray(t).max(axis=1) > 0), 1.0, 0.0)
+    t = np.zeros(len(a))
+    _transmitted(bvh, np.ascontiguousarray(a, np.float64), np.ascontiguousarray(u), np.ascontiguousarray(dist), t)
+    return np.where((dist <= 0) | (t > 0), 1.0, 0.0)
 
 
 def interpolate(grid, points, normals, anchors=None, bvh=None) -> np.ndarray:
