@@ -6,9 +6,15 @@
 // CRUSH, and the object's mask (valid, and seen from the object's centre: the CPU's exact test);
 // its irradiance map read bilinearly at the normal, the octahedral map's edges folded as the
 // octahedron joins them. L = albedo E / pi; no probe counting gives 0.
+// BLENDED 1 (an object no larger than a probe cell): the CPU has blended the object's probes at its
+// centre into one map (probes/sample.py: object_map), read once per pixel at the normal.
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
+#ifndef BLENDED
+#define BLENDED 0
+#endif
+uniform sampler2D u_object_map;   // BLENDED: the object's irradiance map, IRR x IRR RGB32F
 uniform vec3 u_origin;       // the first probe
 uniform float u_spacing;
 uniform ivec3 u_dims;
@@ -64,8 +70,22 @@ vec3 irradiance_at(int probe, vec3 n) {
     return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
 }
 
+vec3 object_irradiance(vec3 n) {
+    int size = u_irr_size;
+    vec2 xy = oct_uv(n) * float(size) - 0.5;
+    vec2 f = xy - floor(xy);
+    int c0 = int(floor(xy.x)), r0 = int(floor(xy.y));
+    ivec2 a = wrap(r0, c0, size), b = wrap(r0, c0 + 1, size), c = wrap(r0 + 1, c0, size), d = wrap(r0 + 1, c0 + 1, size);
+    vec3 ta = texelFetch(u_object_map, a.yx, 0).rgb, tb = texelFetch(u_object_map, b.yx, 0).rgb;
+    vec3 tc = texelFetch(u_object_map, c.yx, 0).rgb, td = texelFetch(u_object_map, d.yx, 0).rgb;
+    return mix(mix(ta, tb, f.x), mix(tc, td, f.x), f.y);
+}
+
 void main() {
     vec3 n = normalize(v_normal);
+#if BLENDED
+    vec3 E = max(object_irradiance(n), 0.0);
+#else
     vec3 g = (v_world - u_origin) / u_spacing;
     ivec3 hi = max(u_dims - 2, ivec3(0));
     ivec3 base = clamp(ivec3(floor(g)), ivec3(0), hi);
@@ -100,6 +120,7 @@ void main() {
         weight += w;
     }
     vec3 E = weight > 0.0 ? max(total / weight, 0.0) : vec3(0.0);
+#endif
     vec3 L = u_albedo * E / PI;
 #if TONEMAP
     vec3 x = L * u_exposure;

@@ -399,3 +399,40 @@ def test_a_sphere_sees_only_its_own_side(make_scene, builder):
         c = np.array(centre)
         e = interpolate(g, c + r * nrm, nrm, np.repeat(c[None], len(nrm), 0), bvh).sum(axis=1)
         assert (e == 0).all() if want_dark else (e > 0).all(), (centre, e.min(), e.max())
+
+
+def test_a_small_sphere_is_shaded_by_its_blended_map(cornell, gl, tmp_path):
+    """A sphere no larger than a probe cell: voxview reads one map, the
+    probes blended at its centre (object_map); every pixel equals the
+    Python interpolation at the centre with that pixel's normal (within
+    1%), and the map read at n is interpolate(centre, n) exactly."""
+    from baker.probes.sample import object_map
+    from baker.render import camera_array
+    from baker.scene import camera_for
+    from baker.scene.prepared import prepare
+    from viewer.objects import Sphere
+    from viewer.snapshot import snapshot
+    path = tmp_path / "c.glb"
+    write_bake(str(path), bake_scene(cornell, small(probe_spacing=0.08)).bake)
+    bake = read_bake(str(path))
+    g = bake.probes
+    bvh = prepare(cornell).bvh.arrays
+    centre, r = np.array([0.3, 0.35, 0.3]), 0.07
+    n = CUBE_NORMALS
+    m = object_map(g, centre, bvh)
+    assert np.allclose(irradiance_map_at(np.repeat(m[None], len(n), 0), n),
+                       interpolate(g, np.repeat(centre[None], len(n), 0), n, np.repeat(centre[None], len(n), 0), bvh),
+                       rtol=1e-5, atol=1e-6)
+    w = h = 48
+    cam = camera_for(bake.scene, None)
+    img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
+    ys, xs = np.nonzero(_sphere_pixels(cam, w, h, centre, r))
+    c = camera_array(cam, w, h)
+    a, b = 2.0 * (xs + 0.5) / w - 1.0, 1.0 - 2.0 * (ys + 0.5) / h
+    d = c[1] + a[:, None] * c[2] + b[:, None] * c[3]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    oc = c[0] - centre
+    t = d @ oc
+    nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
+    want = 0.8 / np.pi * irradiance_map_at(np.repeat(m[None], len(nrm), 0), nrm)
+    assert len(ys) > 30 and np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()

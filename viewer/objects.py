@@ -52,6 +52,11 @@ def probe_mask(grid, center, radius, bvh):
     return lo, ok.reshape(shape).transpose(2, 1, 0).astype(np.uint8)   # z, y, x: a 3D texture's layout
 
 
+def moderngl_triangles():
+    import moderngl
+    return moderngl.TRIANGLES
+
+
 def _packed(values: np.ndarray, channels: int) -> np.ndarray:
     """Probe-major texels (N, ..., channels) as rows of WIDTH texels."""
     flat = np.ascontiguousarray(values, np.float32).reshape(-1, channels)
@@ -82,20 +87,39 @@ class ProbeObjects:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
-        self.masks = {}   # (centre, radius) -> (first probe, mask texture) of the objects drawn last
+        self.masks = {}   # (centre, radius, blended) -> (first probe, mask or map texture) of the object drawn last
         self.bvh = prepare(bake.scene).bvh.arrays
 
-    def _program(self, tonemap):
-        if tonemap not in self.programs:
+    def _program(self, tonemap, blended):
+        key = (bool(tonemap), bool(blended))
+        if key not in self.programs:
             from .context import build_program
-            prog = build_program(self.ctx, "probe_object.vert", "probe_object.frag", {"TONEMAP": int(tonemap)})
-            self.programs[tonemap] = (prog, self.ctx.vertex_array(prog, [(self.vbo, "3f", "in_position")]))
-        return self.programs[tonemap]
+            prog = build_program(self.ctx, "probe_object.vert", "probe_object.frag",
+                                 {"TONEMAP": int(tonemap), "BLENDED": int(blended)})
+            self.programs[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, "3f", "in_position")]))
+        return self.programs[key]
 
     def draw(self, vp, spheres, tonemap=True, exposure=1.0):
-        import moderngl
+        """Each sphere: no larger than a probe cell, shaded by its probes
+        blended at its centre into one map (object_map: one read a pixel);
+        larger, every pixel weighs the probes of its own cell."""
+        for s in spheres:
+            blended = s.radius <= self.grid.spacing
+            prog, vao = self._program(tonemap, blended)
+            self._uniforms(prog, vp, exposure)
+            lo, tex = self._mask_or_map(s, blended)
+            tex.use(5 if not blended else 6)
+            if blended:
+                prog["u_object_map"].value = 6
+            else:
+                prog["u_mask_lo"].value = tuple(int(v) for v in lo)
+            prog["u_center"].value = tuple(float(v) for v in s.center)
+            prog["u_radius"].value = float(s.radius)
+            prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
+            vao.render(moderngl_triangles())
+
+    def _uniforms(self, prog, vp, exposure):
         g = self.grid
-        prog, vao = self._program(bool(tonemap))
         prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
         for name, value in (("u_origin", tuple(float(v) for v in g.origin)), ("u_spacing", float(g.spacing)),
                             ("u_dims", tuple(int(v) for v in g.dims)), ("u_irradiance", 3), ("u_depth", 4),
@@ -105,23 +129,27 @@ class ProbeObjects:
                 prog[name].value = value
         self.irr.use(3)
         self.depth.use(4)
-        for s in spheres:
-            key = (tuple(s.center), float(s.radius))
-            if key not in self.masks:   # an object that stands still keeps its mask
-                for old in self.masks.values():
-                    old[1].release()
-                self.masks.clear()
-                lo, mask = probe_mask(g, s.center, s.radius, self.bvh)
+
+    def _mask_or_map(self, s, blended):
+        """(first probe, texture): the object's probe mask, or its blended
+        map; kept while the object stands still."""
+        import moderngl
+        from baker.probes.sample import object_map
+        key = (tuple(s.center), float(s.radius), blended)
+        if key not in self.masks:
+            for _, old in self.masks.values():
+                old.release()
+            self.masks.clear()
+            if blended:
+                m = np.ascontiguousarray(object_map(self.grid, s.center, self.bvh), np.float32)
+                tex = self.ctx.texture((m.shape[1], m.shape[0]), 3, m.tobytes(), dtype="f4")
+                lo = np.zeros(3, np.int64)
+            else:
+                lo, mask = probe_mask(self.grid, s.center, s.radius, self.bvh)
                 tex = self.ctx.texture3d(mask.shape[::-1], 1, mask.tobytes(), dtype="u1")
-                tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-                self.masks[key] = (lo, tex)
-            lo, tex = self.masks[key]
-            tex.use(5)
-            prog["u_mask_lo"].value = tuple(int(v) for v in lo)
-            prog["u_center"].value = tuple(float(v) for v in s.center)
-            prog["u_radius"].value = float(s.radius)
-            prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
-            vao.render(moderngl.TRIANGLES)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.masks[key] = (lo, tex)
+        return self.masks[key]
 
     def release(self):
         for prog, vao in self.programs.values():

@@ -153,3 +153,38 @@ def interpolate(grid, points, normals, anchors=None, bvh=None) -> np.ndarray:
         weight += w
     out = np.where(weight[:, None] > 0, total / np.where(weight > 0, weight, 1.0)[:, None], 0.0)
     return np.maximum(out, 0.0)
+
+
+def object_map(grid, center, bvh) -> np.ndarray:
+    """(S, S, 3) float32: the irradiance map of a small object at
+    `center`: the probes' maps weighted as interpolate weighs them at the
+    centre itself (trilinear, Chebyshev toward the centre, valid, seen
+    from it). Read at a normal n it is interpolate(grid, center, n) (the
+    read is linear in the maps): what the viewer shades an object no
+    larger than a probe cell with, one map read per pixel."""
+    c = np.asarray(center, np.float64)[None]
+    dims = np.asarray(grid.dims, np.int64)
+    s = float(grid.spacing)
+    g = (c - grid.origin) / s
+    base = np.clip(np.floor(g).astype(np.int64), 0, np.maximum(dims - 2, 0))
+    frac = np.where(dims[None, :] > 1, np.clip(g - base, 0.0, 1.0), 0.0)
+    size = grid.depth.shape[1]
+    out = np.zeros(grid.irradiance.shape[1:], np.float64)
+    total = 0.0
+    for corner in range(8):
+        off = np.array([(corner >> a) & 1 for a in range(3)])
+        idx = np.minimum(base + off, dims - 1)
+        flat = int((idx[:, 0] + dims[0] * (idx[:, 1] + dims[1] * idx[:, 2]))[0])
+        p = grid.origin + s * idx
+        w = float(np.prod(np.where(off == 1, frac, 1.0 - frac)))
+        v = c - p
+        d = float(np.linalg.norm(v))
+        row, col = oct_texel(v / max(d, 1e-12), size)
+        mean, mean2 = (float(x) for x in grid.depth[flat, row[0], col[0]])
+        var = max(mean2 - mean * mean, MIN_VAR * s * s)
+        cheb = 1.0 if d <= mean else (var / (var + (d - mean) ** 2)) ** 3
+        cheb = 0.0 if cheb < CRUSH else cheb
+        w *= cheb * float(grid.valid[flat]) * float(_sees(bvh, c, p)[0])
+        out += w * grid.irradiance[flat]
+        total += w
+    return (out / total if total > 0 else out).astype(np.float32)
