@@ -1,46 +1,17 @@
 // Renders a bake file with three.js in headless Chromium (SwiftShader WebGL, no GPU) and saves
 // the canvas as PNG. usage: node render.mjs BAKE.glb OUT.png WIDTH HEIGHT EXPOSURE lambert|standard
-import fs from "node:fs";
-import http from "node:http";
 import path from "node:path";
 import { fileURLToPath } from "node:url";
-import puppeteer from "puppeteer-core";
+import { renderPage } from "./chromium.mjs";
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const [glb, out, width, height, exposure, material] = process.argv.slice(2);
-const types = { ".html": "text/html", ".js": "text/javascript", ".glb": "model/gltf-binary" };
-const server = http.createServer((req, res) => {
-  const url = decodeURIComponent(req.url.split("?")[0]);
-  const file = url === "/bake.glb" ? glb : path.join(here, url);
-  if (!file.startsWith(here) && file !== glb) { res.writeHead(403); res.end(); return; }
-  fs.readFile(file, (err, data) => {
-    if (err) { res.writeHead(404); res.end(); return; }
-    res.writeHead(200, { "Content-Type": types[path.extname(file)] ?? "application/octet-stream" });
-    res.end(data);
-  });
+await renderPage({
+  resolve: (url) => {
+    if (url === "/bake.glb") return glb;
+    const file = path.join(here, url);
+    return file.startsWith(here) ? file : null;
+  },
+  query: `/page.html?file=/bake.glb&w=${width}&h=${height}&k=${exposure}&material=${material}`,
+  width, height, out, loadingTitle: "voxgi bake in three.js",
 });
-await new Promise((ok) => server.listen(0, "127.0.0.1", ok));
-const port = server.address().port;
-const browser = await puppeteer.launch({
-  executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium",
-  args: ["--headless=new", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
-         "--disable-gpu-sandbox"],
-});
-try {
-  const page = await browser.newPage();
-  const logs = [];
-  page.on("console", (m) => logs.push(m.text()));
-  page.on("pageerror", (e) => logs.push(String(e)));
-  await page.setViewport({ width: +width, height: +height });
-  await page.goto(`http://127.0.0.1:${port}/page.html?file=/bake.glb&w=${width}&h=${height}&k=${exposure}` +
-                  `&material=${material}`);
-  await page.waitForFunction(() => document.title !== "voxgi bake in three.js", { timeout: 120000 });
-  const title = await page.title();
-  if (title !== "rendered") throw new Error(`${title}\n${logs.join("\n")}`);
-  const dataUrl = await page.evaluate(() => document.querySelector("canvas").toDataURL("image/png"));
-  fs.writeFileSync(out, Buffer.from(dataUrl.split(",")[1], "base64"));
-  console.log(JSON.stringify({ out, logs }));
-} finally {
-  await browser.close();
-  server.close();
-}
