@@ -136,7 +136,13 @@ def test_a_worker_of_other_versions_is_refused(cluster, cornell):
         msg = str(e.value)
         assert "numba 0.0.1" in msg and real in msg and "\n" not in msg
     finally:
+        # numba stamps its cache index with the version it read when a
+        # module was imported: the voxgi modules imported there while it
+        # was patched would miss the cache for good, so that worker starts
+        # over (its nanny gives a fresh process)
         client.run(lambda: setattr(numba, "__version__", real), workers=[one])
+        client.restart_workers([one])
+        client.wait_for_workers(2, timeout=120)
 
 
 @pytest.mark.slow
