@@ -112,12 +112,18 @@ class LightcutsConfig:
     """How points are shaded by lightcuts over the VPLs (docs/design.md
     section 7): direct_vpls points on the area emitters; sky_vpls
     directions of the sky; epsilon the cut's relative error bound; cap the
-    largest cut; seed."""
+    largest cut; seed. gather: a quality frame's bounced light is gathered
+    from the voxel solution by this many rays at records gather_spacing
+    voxel cells apart and interpolated between them (a final gather:
+    render/lightcuts_frame.py; 0: the voxels' VPLs in the cuts, as the
+    emitters'). A bake's texels take their own (BakeConfig.texel_gather)."""
     direct_vpls: int = 32_768
     sky_vpls: int = 1024
     epsilon: float = 0.02
     cap: int = 1000
     seed: int = 0
+    gather: int = 0
+    gather_spacing: float = 1.0
 
     def __post_init__(self):
         if self.direct_vpls < 0 or self.sky_vpls < 0:
@@ -126,6 +132,11 @@ class LightcutsConfig:
             raise ConfigError(f"epsilon must lie in [0, 1) (got {self.epsilon})")
         if self.cap < 1:
             raise ConfigError(f"the cut cap must be >= 1 (got {self.cap})")
+        if not 0 <= self.gather <= MAX_GATHER:
+            raise ConfigError(f"a frame's gather rays must lie in [0, {MAX_GATHER}] (got {self.gather})")
+        if not 0 <= self.gather_spacing <= MAX_GATHER_SPACING:
+            raise ConfigError(f"a frame's gather spacing must lie in [0, {MAX_GATHER_SPACING}] cells "
+                              f"(got {self.gather_spacing})")
 
 
 UV_MODES = ("auto", "per-triangle", "xatlas")

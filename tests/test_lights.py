@@ -444,12 +444,15 @@ def test_frame_pixels_a_shadow_edge_crosses_take_their_pattern_mean(make_scene):
                         1e-5 * surf.scale)
     assert pts[4].all()  # every sample on the floor
     x, z = pts[0][:, 0], pts[0][:, 2]
+    hy = h - pts[0][:, 1]   # the points lie a hair above the floor, back along their rays
+    assert np.all(np.abs(hy - h) < 1e-4 * h)
     lit = (x < xe).reshape(n, AA * AA)
-    exact = (rho / np.pi * power * h / (h * h + (x - xe) ** 2 + z * z) ** 1.5).reshape(n, AA * AA) * lit
+    exact = (rho / np.pi * power * hy / (hy * hy + (x - xe) ** 2 + z * z) ** 1.5).reshape(n, AA * AA) * lit
     mean = exact.mean(axis=1)
     centre_pts = trace_samples(bvh.arrays, surf.arrays, cam, s, s, np.arange(n), np.zeros(n, np.int64), 1,
                                1e-5 * surf.scale)[0]
-    centre = rho / np.pi * power * h / (h * h + (centre_pts[:, 0] - xe) ** 2 + centre_pts[:, 2] ** 2) ** 1.5
+    hc = h - centre_pts[:, 1]
+    centre = rho / np.pi * power * hc / (hc * hc + (centre_pts[:, 0] - xe) ** 2 + centre_pts[:, 2] ** 2) ** 1.5
     centre *= centre_pts[:, 0] < xe
     crossed = lit.any(axis=1) & ~lit.all(axis=1)
     assert 10 <= crossed.sum() <= 3 * s

@@ -146,7 +146,9 @@ def _meta(scene, config, solution, counts) -> dict:
             "lightcuts over the VPLs",
             # the thread count is the machine's, not the bake's: the same bake is the same bytes on any
             "solver": {k: v for k, v in asdict(config.solver).items() if k != "threads"},
-            "lightcuts": asdict(config.lightcuts) if config.lightcuts else None,
+            # the frames' gather is not the texels' (texel_indirect below)
+            "lightcuts": {k: v for k, v in asdict(config.lightcuts).items() if not k.startswith("gather")}
+            if config.lightcuts else None,
             "texel_samples": config.texel_samples if config.lightcuts else 1,
             "texel_interpolate": config.texel_interpolate if config.lightcuts else 0.0,
             "texel_indirect": {"stride": config.texel_indirect_stride, "cap": config.texel_indirect_cap,

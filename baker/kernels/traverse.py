@@ -158,10 +158,23 @@ def cut_out(bvh, j, u, v):
     return a < bvh.mask_cutoff[m]
 
 
+TIE = 1.0 + 1e-12   # hits this near the best are at one point: a ray through a box's convex edge or corner
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _facing(bvh, j, dx, dy, dz):
+    nx, ny, nz = hit_normal(bvh, j)
+    return nx * dx + ny * dy + nz * dz < 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False):
     """First hit with t in (tmin, tmax): (t, bvh-order triangle j, u, v);
-    j = -1 and t = inf on a miss. cull_back: triangles seen from behind
+    j = -1 and t = inf on a miss. Triangles met at one point (within TIE:
+    a ray through a convex edge or corner enters one face as it leaves
+    the other) give the one it meets from the front, whichever the
+    traversal found first: else a camera ray through a box's corner sees
+    the inside of the box. cull_back: triangles seen from behind
     (winding normal . d > 0) are passed through, as a rasterizer culls them.
 
     Wide traversal: a node's boxes are tested together (_hit_mask); leaf
@@ -188,7 +201,8 @@ def closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, tmin, tmax, cull_back=False)
             if n > 0:
                 for j in range(c, c + n):
                     th, u, v = intersect_triangle(tris, j, o, kx, ky, kz, sx, sy, sz)
-                    if tmin < th < best_t:
+                    if tmin < th < best_t or (tmin < th <= best_t * TIE and best_j >= 0
+                                              and _facing(bvh, j, dx, dy, dz) and not _facing(bvh, best_j, dx, dy, dz)):
                         if cull_back:
                             nx, ny, nz = hit_normal(bvh, j)
                             if nx * dx + ny * dy + nz * dz > 0.0:

@@ -33,13 +33,14 @@ class Lights:
         return len(self.vpls) if self.sky is None else int(np.sum(self.vpls.kind != KIND_DIRECTIONAL))
 
 
-def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -> Lights:
+def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True, tree=True) -> Lights:
     """The VPLs and their tree for a Prepared scene and its voxel Solution;
     the sky is shaded along its own VPLs' directions (Lights.sky): a cut
     over a partly hidden sky refines to nearly every direction anyway, at
     the cost of a tree walk and a bound per ray. on_surface: voxel VPLs
     that lie just under their curved surface move onto it through the BVH
-    (vpl.on_surface)."""
+    (vpl.on_surface). tree=False: no tree (for split_lights, which
+    builds its parts' own)."""
     bvh = prepared.bvh if on_surface else None
     vpls = make_vpls(prepared.scene, solution, prepared.surfaces, config.direct_vpls, config.sky_vpls, config.seed,
                      bvh)
@@ -47,8 +48,8 @@ def build_lights(prepared, solution, config: LightcutsConfig, on_surface=True) -
     m = int(np.sum(~sky))
     if np.any(sky[:m]):
         raise AssertionError("make_vpls puts the sky's directions last")
-    tree = build_tree(vpls.subset(m), config.seed) if m else None
-    return Lights(vpls, tree, np.ascontiguousarray(vpls.normal[m:], np.float64))
+    t = build_tree(vpls.subset(m), config.seed) if m and tree else None
+    return Lights(vpls, t, np.ascontiguousarray(vpls.normal[m:], np.float64))
 
 
 def split_lights(lights: Lights, seed=0, tree=True) -> tuple[Lights, Lights | None]:

@@ -146,12 +146,12 @@ class _Job:
         return self.prepared.surfaces
 
 
-def _lights(job):
+def _lights(job, tree=True):
     from ..lights import build_lights
     from ..presets import lightcuts_config
     lc = job.settings.lightcuts or lightcuts_config()
     with job.stats.stage("lights"):
-        lights = build_lights(job.prepared, job.solution, lc)
+        lights = build_lights(job.prepared, job.solution, lc, tree=tree)
     job.stats.count(**lights.vpls.counts())
     return lc, lights
 
@@ -184,16 +184,34 @@ def _voxels(job) -> Frame:
 def _lightcuts(job) -> Frame:
     from ..progress import bar
     from .lightcuts_frame import render_lightcuts
+    from .lightcuts_frame import Bounced
+    from ..lights import split_lights
     s = job.settings
-    lc, lights = _lights(job)
+    lc, lights = _lights(job, tree=not job_gathers(job))
+    v = lights.vpls.counts()
+    bounce = None
+    if job_gathers(job):   # the voxels' light by a final gather; the cuts sum the emitters' VPLs alone
+        with job.stats.stage("lights"):
+            lights, smooth = split_lights(lights, lc.seed, tree=False)
+        sky = smooth is not None and smooth.sky is not None and len(smooth.sky) > 0
+        bounce = Bounced(job.solution, lc.gather, lc.gather_spacing, smooth if sky else None)
     with job.stats.stage("lightcuts_frame"), bar(s.width * s.height, "lightcuts", "point", job.progress) as b:
         image, fs = render_lightcuts(job.bvh, job.surfaces, lights, job.cam, s.width, s.height, lc.epsilon, lc.cap,
-                                     b.update, grow=b.grow)
-    v = lights.vpls.counts()
-    line = (f"{job.solution.summary()}\nVPLs {len(lights.vpls)} ({v['vpls_direct']} direct, {v['vpls_indirect']} "
-            f"indirect, {v['vpls_sky']} sky)  cut mean {fs.cut_mean:.0f} max {fs.cut_max}  shadow rays/pixel "
+                                     b.update, grow=b.grow, bounce=bounce)
+    how = (f"{v['vpls_indirect']} indirect" if bounce is None else
+           f"the voxels' light gathered by {lc.gather} rays" + (f" at records {lc.gather_spacing:g} cells apart"
+                                                                 if lc.gather_spacing else " per point"))
+    line = (f"{job.solution.summary()}\nVPLs {v['vpls_direct'] + v['vpls_sky']} ({v['vpls_direct']} direct, "
+            f"{v['vpls_sky']} sky), {how}  cut mean {fs.cut_mean:.0f} max {fs.cut_max}  shadow rays/pixel "
             f"{fs.shadow_rays_per_pixel:.0f}")
-    return Frame(image, dict(asdict(fs), epsilon=lc.epsilon, cut_cap=lc.cap), line, job.solution)
+    return Frame(image, dict(asdict(fs), epsilon=lc.epsilon, cut_cap=lc.cap, gather=lc.gather if bounce else 0),
+                 line, job.solution)
+
+
+def job_gathers(job) -> bool:
+    """Whether a lightcuts frame gathers its bounced light (LightcutsConfig.gather)."""
+    from ..presets import lightcuts_config
+    return (job.settings.lightcuts or lightcuts_config()).gather > 0
 
 
 def _instant_radiosity(job) -> Frame:

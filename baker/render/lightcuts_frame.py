@@ -92,7 +92,10 @@ def trace_samples(bvh, surf, cam, width, height, pix, sub, per_axis, eps):
                 continue
             nx, ny, nz = -nx, -ny, -nz
         mat[i] = m
-        point[i, 0], point[i, 1], point[i, 2] = ox + t * dx, oy + t * dy, oz + t * dz
+        # a hair back along the ray: a point on a concave edge (a camera on a room's diagonal) is on both walls,
+        # and every ray it sends along the other wall starts on it
+        tp = max(t - eps, 0.5 * t)
+        point[i, 0], point[i, 1], point[i, 2] = ox + tp * dx, oy + tp * dy, oz + tp * dz
         normal[i, 0], normal[i, 1], normal[i, 2] = nx, ny, nz
         er, eg, eb = emission_at(surf, tri, u, v)
         base[i, 0], base[i, 1], base[i, 2] = er * gr, eg * gg, eb * gb
@@ -154,23 +157,82 @@ def contrast_pixels(lum, done, width, height, contrast):
     return out
 
 
-def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals):
+class Bounced(NamedTuple):
+    """A frame's bounced light by a final gather (LightcutsConfig.gather):
+    the Solution it reads, rays per gathered point, the records' spacing
+    in voxel cells (0: every point gathered), and `smooth`, the Lights
+    whose cuts add the sky's light (split_lights; None: no sky). The
+    frame's own lights are then the emitters' alone."""
+    solution: object
+    rays: int
+    spacing: float
+    smooth: object
+
+
+LIFT = 0.25   # cells: the gather's rays start this far off the surface (as a bake's texels': lightmap/values.py)
+
+
+def _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap):
+    """The bounced light H (m, 3) at the points gathered, the sky's by its
+    cuts (m, 3), the shaded points' indices and the SmoothCache over them
+    (None: each gathered)."""
+    from ..lightmap.smooth_cache import SmoothCache
+    from ..lights import irradiance
+    from ..scene.prepared import Prepared
+    from ..solve.gather import gather_bounced
+    h = np.zeros((len(point), 3))
+    idx = np.nonzero(shade)[0]
+    lift = LIFT * float(bounce.solution.voxels.cell_size)
+    prepared = Prepared(None, bvh, surfaces)
+
+    def gather(p, nrm):
+        return gather_bounced(prepared, bounce.solution, p, nrm, lift, bounce.rays)
+    cache = None
+    if len(idx) and bounce.spacing > 0:
+        cache = SmoothCache(bvh.arrays, gather, point[idx], normal[idx],
+                            bounce.spacing * float(bounce.solution.voxels.cell_size), lift)
+        h[idx] = cache.values
+    elif len(idx):
+        h[idx] = gather(point[idx], normal[idx])
+    sky = np.zeros((len(point), 3))
+    if bounce.smooth is not None:
+        sky = irradiance(bounce.smooth, bvh, surfaces, point, normal, shade, eps, epsilon, cap, exact=False)[0]
+    return h, sky, idx, cache
+
+
+def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals,
+           bounce=None):
     """Radiance (n, 3) summed per owner pixel from the samples (the tuple
     trace_samples returns) by lightcuts; adds to the totals (points,
-    cut sizes, shadow rays)."""
+    cut sizes, shadow rays). bounce: a Bounced, the bounced light by a
+    final gather (lights: the emitters' alone), whose luminance bounds
+    the cuts' error too; where the gather's records around a point
+    disagree by more than CONTRAST of its light (a contact, the bounced
+    light's shadow) the point is gathered itself."""
     from ..lights import irradiance
     from ..startup import checkpoint
     point, normal, base, albedo, shade = samples.point, samples.normal, samples.base, samples.albedo, samples.shade
     h = np.zeros((len(point), 3))
     cuts = np.zeros(len(point), np.int64)
     rays = np.zeros(len(point), np.int64)
+    ind, sky, idx, cache = None, None, None, None
+    floor = np.zeros(len(point))
+    if bounce is not None:
+        ind, sky, idx, cache = _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap)
+        floor = (ind + sky) @ LUMINANCE
+        checkpoint()
     for a in range(0, len(point), BATCH):
         s = slice(a, a + BATCH)
         h[s], cuts[s], rays[s] = irradiance(lights, bvh, surfaces, point[s], normal[s], shade[s], eps, epsilon, cap,
-                                            brute)
+                                            brute, floor=floor[s], analytic=bounce is not None)
         checkpoint()
         if progress is not None:
             progress(min(BATCH, len(point) - a))
+    if cache is not None:   # the records' spread against the point's whole light: contacts gathered there
+        cache.refine((h[idx] + sky[idx]) @ LUMINANCE, CONTRAST)
+        ind[idx] = cache.values
+    if ind is not None:
+        h += ind + sky
     radiance = base + albedo / math.pi * h
     image = np.zeros((n, 3))
     np.add.at(image, owner, radiance * weight[:, None])
@@ -207,9 +269,10 @@ class FrameStats:
 
 
 def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, cap=1000, progress=None,
-                     brute=False, aa=True, grow=None):
+                     brute=False, aa=True, grow=None, bounce=None):
     """Linear radiance image (height, width, 3) float32 and its
-    FrameStats. progress(k): k more
+    FrameStats. bounce: a Bounced (the bounced light by a final gather;
+    `lights` then the emitters' alone). progress(k): k more
     shading points done; grow(k): k more points than width x height (the
     anti-aliased pixels' samples), for a progress bar's total."""
     n = width * height
@@ -229,7 +292,8 @@ def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, ca
     if grow is not None:
         grow(len(samples.point) - n)
     totals = {"points": 0, "shaded": 0, "cuts": 0, "cut_max": 0, "rays": 0}
-    image = _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals)
+    image = _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals,
+                   bounce)
     c = np.zeros(0, np.int64)
     if aa:
         c = np.nonzero(contrast_pixels(image @ LUMINANCE, edges, width, height, CONTRAST))[0]
@@ -239,7 +303,7 @@ def render_lightcuts(bvh, surfaces, lights, cam, width, height, epsilon=0.02, ca
             grow(len(samples.point))
         image[c] = 0.0
         image += _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress,
-                        totals)
+                        totals, bounce)
     stats = FrameStats(totals["points"], int(len(e)), int(len(c)),
                        totals["cuts"] / totals["shaded"] if totals["shaded"] else 0.0, totals["cut_max"],
                        totals["rays"], totals["rays"] / n)
