@@ -108,7 +108,9 @@ def _render_settings(args):
     adaptive = args.time_limit is not None or args.noise is not None
     solver = _configs(args, "solver", lambda: solver_config(args.preset, **_solver_overrides(args)))
     lc = _configs(args, "lightcuts", lambda: lightcuts_config(args.preset, epsilon=args.epsilon,
-                                                              direct_vpls=args.direct_vpls, seed=args.seed))
+                                                              direct_vpls=args.direct_vpls, seed=args.seed,
+                                                              gather=args.frame_gather,
+                                                              gather_spacing=args.frame_gather_spacing))
     return RenderSettings(args.method, args.width, args.height, args.spp or (SPP_CAP if adaptive else 64), args.seed,
                           args.time_limit, args.noise, solver, lc, args.vpls_per_frame, args.frames,
                           args.ir_tolerance, args.path_bounces)

@@ -205,6 +205,7 @@ def solver_args(p):
 def _render_parser(sub):
     import textwrap
     from .render.frame import METHODS, SPP_CAP
+    from .config import MAX_GATHER, MAX_GATHER_SPACING
     methods = "\n".join(textwrap.fill(m.about, 78, initial_indent=f"  {m.name:<18} ", subsequent_indent=" " * 21)
                         for m in METHODS.values())
     p = sub.add_parser("render", help="render an image: reference path tracer, the voxel view, lightcuts, ...",
@@ -234,6 +235,13 @@ def _render_parser(sub):
     p.add_argument("--path-bounces", type=integer(0, 999), default=None, metavar="K",
                    help="pathtrace: count the light of paths with at most K reflections (1: direct light only, "
                         "0: only the lamps and sky seen; default: all), to split an image's error by bounce")
+    p.add_argument("--frame-gather", type=integer(0, MAX_GATHER), default=None, metavar="RAYS",
+                   help="lightcuts: the bounced light gathered from the voxel solution by RAYS rays at records "
+                        "--frame-gather-spacing cells apart (preset: " + per_preset(lambda q: q.lightcuts.gather) +
+                        "; 0: the voxels as VPLs in the cuts)")
+    p.add_argument("--frame-gather-spacing", type=number(0, MAX_GATHER_SPACING), default=None, metavar="CELLS",
+                   help="lightcuts: voxel cells between the gather's records, interpolated between them (preset: "
+                        + per_preset(lambda q: q.lightcuts.gather_spacing) + "; 0: every point gathered)")
     run_args(p)
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")

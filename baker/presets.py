@@ -59,7 +59,10 @@ class Preset:
 # 4-11% of the view's mean at default and up to 26% at preview, where the gather came within 0.6-5% of the path
 # tracer in about the same time; on the Cornell box it takes about twice as long (the lines stay as --gather-rays 0, with
 # the radius). The default bake's texels take a tighter epsilon than its frames because a lightmap is looked at
-# for longer; its adaptive shading and coarser contrast keep its time near the preview's.
+# for longer; its adaptive shading and coarser contrast keep its time near the preview's. The default solve spends
+# on photons what it once spent on gather rays (160 a voxel and 128 rays, not 64 and 256; bench/results/pixels.md):
+# the first bounce's photon noise was what a voxel's value was off by (a furnace's voxel view 0.95-1.03 of exact, now
+# 0.98-1.02), the later bounces average it away whatever their rays, and the solve takes no longer.
 PRESETS = {p.name: p for p in (
     Preset("preview", "coarse voxels, texels from the voxel solution: seconds",
            SolverConfig(surface_cells=12_500, radius=4, photons_per_voxel=32, photon_smoothing=2.0, tolerance=1e-2,
@@ -69,8 +72,8 @@ PRESETS = {p.name: p for p in (
            uv="per-triangle", probes=ProbeConfig(budget=256, copies=16)),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
-           SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=64, photon_smoothing=2.0, tolerance=1e-2,
-                        max_bounces=64, gather_rays=256),
+           SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=160, photon_smoothing=2.0, tolerance=1e-2,
+                        max_bounces=64, gather_rays=128),
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000, gather=256),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=200,

@@ -205,6 +205,25 @@ def test_every_render_method_runs_from_the_command_line(tmp_path):
         assert expect[name] in json.loads(stats.read_text())["counters"], name
 
 
+def test_frame_gather_flags_reach_the_frame(tmp_path):
+    """--frame-gather sets the lightcuts frame's gather rays (0: the voxels
+    as VPLs in the cuts); the stats and the summary say which; an
+    out-of-range value is refused in one line."""
+    seen = {}
+    for rays in ("0", "32"):
+        stats = tmp_path / f"g{rays}.json"
+        code, out, err = cli("render", "cornell_box", "--method", "lightcuts", "--preset", "preview", "--resolution",
+                             "12", "--photons", "20000", "--direct-vpls", "64", "--width", "8", "--height", "8",
+                             "--frame-gather", rays, "--frame-gather-spacing", "0", "-o", tmp_path / f"g{rays}.exr",
+                             "--stats", stats)
+        assert code == 0, err
+        seen[rays] = json.loads(stats.read_text())["counters"]["gather"]
+    assert seen == {"0": 0, "32": 32}
+    code, _, err = cli("render", "cornell_box", "--method", "lightcuts", "--frame-gather", "-1", "-o",
+                       tmp_path / "x.exr")
+    assert code != 0 and "--frame-gather" in err and len(err.strip().splitlines()) <= 3
+
+
 def test_absurd_resolution_is_refused_at_once(tmp_path):
     """The memory estimate costs O(triangles): a resolution or a cell size
     within the flags' ranges but far beyond the memory budget is refused
