@@ -57,7 +57,7 @@ def test_two_workers_write_the_same_bytes(cluster, local_bytes, tmp_path, name):
     result = bake_scene(scene, small(), executor=cluster)
     ran = {k: v - before.get(k, 0) for k, v in cluster.named.items()}
     # the texels went out as tiles, the photons and the solver's gathers as blocks
-    assert ran["tile"] > 4 and ran["photons"] >= 1 and ran["voxels"] >= 3, ran
+    assert ran["tile"] > 4 and ran["photons"] >= 1 and ran["voxels"] >= 2, ran   # a block per bounce gathered
     assert baked_bytes(tmp_path / "w.glb", result) == want
     assert "2 (local cluster)" in result.run
 

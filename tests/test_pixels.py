@@ -98,3 +98,28 @@ def test_a_ray_through_a_convex_edge_meets_the_face_it_enters():
     c = corners[tri]
     n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     assert (np.einsum("ij,ij->i", n, d) < 0).all()   # met from the front: not the inside of the box
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["two_rooms", "two_rooms_shared_floor", "thin_wall"])
+def test_gathered_frames_keep_the_dark_room_black(make_scene, name):
+    """The frame's gather reads only what the voxels on the side it hits
+    hold: every pixel of the dark room, seen from inside it, is exactly 0
+    (the lit room's frame is not); the same image for any thread count."""
+    from baker.scene.model import Camera
+    from scenes.generate import thin_wall, two_rooms
+    from tests.threads import same_for_any_thread_count
+    builder = {"two_rooms": two_rooms(), "two_rooms_shared_floor": two_rooms(shared_floor=True),
+               "thin_wall": thin_wall()}[name]
+    scene = make_scene(builder, f"pixels_{name}")
+    sol = solve(scene, solver_config("default", resolution=32))
+    lc = lightcuts_config("default")
+    assert lc.gather > 0
+    dark = Camera("dark", np.array([1.95, 0.5, 0.5]), np.array([-1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]),
+                  np.radians(70))
+    lit = Camera("lit", np.array([0.05, 0.5, 0.5]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]),
+                 np.radians(70))
+    img = render(scene, dark, 16, 16, "lightcuts", solution=sol, lightcuts=lc)
+    assert img.max() == 0.0
+    bright = same_for_any_thread_count(lambda: render(scene, lit, 16, 16, "lightcuts", solution=sol, lightcuts=lc))
+    assert bright.min() > 0.0
