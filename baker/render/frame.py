@@ -184,17 +184,13 @@ def _voxels(job) -> Frame:
 def _lightcuts(job) -> Frame:
     from ..progress import bar
     from .lightcuts_frame import render_lightcuts
-    from .lightcuts_frame import Bounced
-    from ..lights import split_lights
     s = job.settings
     lc, lights = _lights(job, tree=not job_gathers(job))
     v = lights.vpls.counts()
     bounce = None
-    if job_gathers(job):   # the voxels' light by a final gather; the cuts sum the emitters' VPLs alone
+    if job_gathers(job):
         with job.stats.stage("lights"):
-            lights, smooth = split_lights(lights, lc.seed, tree=False)
-        sky = smooth is not None and smooth.sky is not None and len(smooth.sky) > 0
-        bounce = Bounced(job.solution, lc.gather, lc.gather_spacing, smooth if sky else None)
+            lights, bounce = gathered_lights(lights, job.solution, lc)
     with job.stats.stage("lightcuts_frame"), bar(s.width * s.height, "lightcuts", "point", job.progress) as b:
         image, fs = render_lightcuts(job.bvh, job.surfaces, lights, job.cam, s.width, s.height, lc.epsilon, lc.cap,
                                      b.update, grow=b.grow, bounce=bounce)
@@ -206,6 +202,19 @@ def _lightcuts(job) -> Frame:
             f"{fs.shadow_rays_per_pixel:.0f}")
     return Frame(image, dict(asdict(fs), epsilon=lc.epsilon, cut_cap=lc.cap, gather=lc.gather if bounce else 0),
                  line, job.solution)
+
+
+def gathered_lights(lights, solution, lc):
+    """(the cuts' Lights, Bounced) of a frame that gathers its bounced
+    light (LightcutsConfig.gather > 0): the voxels' light by a final
+    gather into `solution`, the cuts over the emitters' VPLs alone, the
+    sky's directions by cuts of their own. `lights`: build_lights' (its
+    tree is not needed: tree=False)."""
+    from ..lights import split_lights
+    from .lightcuts_frame import Bounced
+    sharp, smooth = split_lights(lights, lc.seed, tree=False)
+    sky = smooth is not None and smooth.sky is not None and len(smooth.sky) > 0
+    return sharp, Bounced(solution, lc.gather, lc.gather_spacing, smooth if sky else None)
 
 
 def job_gathers(job) -> bool:
