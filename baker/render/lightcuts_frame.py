@@ -174,8 +174,8 @@ LIFT = 0.25   # cells: the gather's rays start this far off the surface (as a ba
 
 def _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap):
     """The bounced light H (m, 3) at the points gathered, the sky's by its
-    cuts (m, 3), the shaded points' indices and the SmoothCache over them
-    (None: each gathered)."""
+    cuts (m, 3), the shaded points' indices, the SmoothCache over them
+    (None: each gathered) and the sky's rays."""
     from ..lightmap.smooth_cache import SmoothCache
     from ..lights import irradiance
     from ..scene.prepared import Prepared
@@ -195,9 +195,11 @@ def _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap):
     elif len(idx):
         h[idx] = gather(point[idx], normal[idx])
     sky = np.zeros((len(point), 3))
+    sky_rays = 0
     if bounce.smooth is not None:
-        sky = irradiance(bounce.smooth, bvh, surfaces, point, normal, shade, eps, epsilon, cap, exact=False)[0]
-    return h, sky, idx, cache
+        sky, _, r = irradiance(bounce.smooth, bvh, surfaces, point, normal, shade, eps, epsilon, cap, exact=False)
+        sky_rays = int(r.sum())
+    return h, sky, idx, cache, sky_rays
 
 
 def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, brute, progress, totals,
@@ -218,7 +220,8 @@ def _shade(samples, owner, weight, n, lights, bvh, surfaces, eps, epsilon, cap, 
     ind, sky, idx, cache = None, None, None, None
     floor = np.zeros(len(point))
     if bounce is not None:
-        ind, sky, idx, cache = _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap)
+        ind, sky, idx, cache, sky_rays = _bounced(bounce, bvh, surfaces, point, normal, shade, eps, epsilon, cap)
+        totals["rays"] += sky_rays   # the sky's visibility rays count as the frame's shadow rays
         floor = (ind + sky) @ LUMINANCE
         checkpoint()
     for a in range(0, len(point), BATCH):
