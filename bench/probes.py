@@ -8,7 +8,8 @@ stage alone (bake_probes, timed twice, the faster kept), the grid, the
 share of valid probes and the bytes the probe block adds to the bake
 file. With --window: voxview's window under Xvfb (llvmpipe) at 1280x720
 on the scene's default bake, with and without a sphere dropped at the
-first frame: the rate over 240 frames, and the steady rate from the
+first frame, standing still or moved by the arrow keys every frame
+(right and left in turn): the rate over 240 frames, and the steady rate from the
 difference between runs of 60 and 240 frames (the first drop builds the
 scene's BVH for the sphere's visibility test and its shader).
 """
@@ -57,6 +58,19 @@ def probe_rows(scenes, presets):
 
 
 FRAMES_SHORT, FRAMES_LONG = 60, 240
+SWING = 20   # frames the moving sphere goes one way before it turns
+
+
+def swing(frames):
+    """Arrow-key events that move the sphere right and left in turn from
+    frame 2 on, SWING frames each way, so that it stays in view (the
+    window's script runs at a fixed 1/30 s a frame)."""
+    events = []
+    for k, start in enumerate(range(2, frames, SWING)):
+        key = "RIGHT" if k % 2 == 0 else "LEFT"
+        events += [{"frame": start, "key": key, "action": "press"},
+                   {"frame": min(start + SWING, frames) - 1, "key": key, "action": "release"}]
+    return events
 
 
 def window_rows(scenes):
@@ -68,7 +82,8 @@ def window_rows(scenes):
             bake = os.path.join(d, f"{name}.glb")
             subprocess.run([sys.executable, "-m", "baker", "bake", name, "-o", bake], check=True,
                            capture_output=True)
-            for label, script in (("no object", []), ("sphere", [{"frame": 1, "key": "O"}])):
+            for label, script in (("no object", []), ("sphere", [{"frame": 1, "key": "O"}]),
+                                  ("sphere moving", [{"frame": 1, "key": "O"}] + swing(FRAMES_LONG))):
                 path = os.path.join(d, "s.json")
                 with open(path, "w") as f:
                     json.dump(script, f)

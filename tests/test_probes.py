@@ -436,3 +436,50 @@ def test_a_small_sphere_is_shaded_by_its_blended_map(cornell, gl, tmp_path):
     nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
     want = 0.8 / np.pi * irradiance_map_at(np.repeat(m[None], len(nrm), 0), nrm)
     assert len(ys) > 30 and np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()
+
+
+def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
+    """A sphere larger than a probe cell: voxview reads one map over its
+    normals (sphere_map), each texel the per-point interpolation at the
+    sphere's point with that normal. At the map's texel normals the map is
+    interpolate (anchored at the centre) exactly; every pixel of the
+    snapshot is interpolate at the pixel's point and normal within 1% of
+    the sphere's brightest (the map's bilinear read between texels)."""
+    from baker.probes.sample import sphere_map
+    from baker.render import camera_array
+    from baker.scene import camera_for
+    from baker.scene.prepared import prepare
+    from viewer.objects import Sphere, probe_seen
+    from viewer.snapshot import snapshot
+    path = tmp_path / "c.glb"
+    write_bake(str(path), bake_scene(cornell, small(probe_spacing=0.06)).bake)
+    bake = read_bake(str(path))
+    g = bake.probes
+    bvh = prepare(cornell).bvh.arrays
+    centre, r = np.array([0.28, 0.40, 0.28]), 0.09
+    assert r > g.spacing
+    size = 16
+    m = sphere_map(g, centre, r, probe_seen(g, centre, r, bvh), size)
+    uv = (np.stack(np.meshgrid(np.arange(size), np.arange(size)), -1).reshape(-1, 2) + 0.5) / size * 2 - 1
+    n = np.concatenate([uv, (1 - np.abs(uv).sum(axis=1))[:, None]], axis=1)   # the texel centres' normals
+    low = n[:, 2] < 0
+    n[low, :2] = (1 - np.abs(n[low][:, [1, 0]])) * np.where(n[low, :2] >= 0, 1.0, -1.0)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    anchors = np.repeat(centre[None], len(n), 0)
+    want = interpolate(g, centre + r * n, n, anchors, bvh)
+    assert np.allclose(m.reshape(-1, 3), want, rtol=1e-4, atol=1e-6)
+    assert (want.sum(axis=1) > 0).mean() > 0.9
+    w = h = 96
+    cam = camera_for(bake.scene, None)
+    img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
+    ys, xs = np.nonzero(_sphere_pixels(cam, w, h, centre, r))
+    c = camera_array(cam, w, h)
+    a, b = 2.0 * (xs + 0.5) / w - 1.0, 1.0 - 2.0 * (ys + 0.5) / h
+    d = c[1] + a[:, None] * c[2] + b[:, None] * c[3]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    oc = c[0] - centre
+    t = d @ oc
+    nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
+    want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh)
+    assert len(ys) > 200
+    assert np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()

@@ -6,7 +6,11 @@ float textures (probe-major, WIDTH texels a row). Per object, the CPU
 decides which probes around it count: valid ones that its centre sees (a
 ray against the scene's BVH), the exact test that keeps an object beside
 a wall lit by its own side only; the shader reads that mask and weighs
-the rest as baker/probes/sample.py does.
+the rest as baker/probes/sample.py does. A sphere larger than a probe
+cell gets that per-point sum over its whole surface once per position,
+into an octahedral map of its normals (a sphere's point is a function of
+its normal), and its pixels read the map; a smaller one reads its probes
+blended at its centre (probe/sample.py: object_map).
 """
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 WIDTH = 4096   # texels per row of the packed probe textures (shaders/probe_object.frag)
+SURFACE_MAP = 128   # texels a side of a large sphere's map: its mean is the per-pixel sum's within 0.01% (64: 0.5%)
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,17 @@ def probe_mask(grid, center, radius, bvh):
     return lo, ok.reshape(shape).transpose(2, 1, 0).astype(np.uint8)   # z, y, x: a 3D texture's layout
 
 
+def probe_seen(grid, center, radius, bvh) -> np.ndarray:
+    """(count,) uint8: probe_mask over the whole grid (0 outside the
+    sphere's cells), as sphere_map takes it."""
+    lo, mask = probe_mask(grid, center, radius, bvh)
+    dims = np.asarray(grid.dims, np.int64)
+    seen = np.zeros(tuple(dims[::-1]), np.uint8)   # z, y, x: the flat order x fastest
+    nz, ny, nx = mask.shape
+    seen[lo[2]:lo[2] + nz, lo[1]:lo[1] + ny, lo[0]:lo[0] + nx] = mask
+    return seen.reshape(-1)
+
+
 def moderngl_triangles():
     import moderngl
     return moderngl.TRIANGLES
@@ -87,7 +103,7 @@ class ProbeObjects:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
-        self.masks = {}   # (centre, radius, blended) -> (first probe, mask or map texture) of the object drawn last
+        self.maps = {}   # (kind, i) -> [side, texture, (centre, radius) it holds]
         self.bvh = prepare(bake.scene).bvh.arrays
 
     def _program(self, tonemap, blended):
@@ -100,19 +116,15 @@ class ProbeObjects:
         return self.programs[key]
 
     def draw(self, vp, spheres, tonemap=True, exposure=1.0):
-        """Each sphere: no larger than a probe cell, shaded by its probes
-        blended at its centre into one map (object_map: one read a pixel);
-        larger, every pixel weighs the probes of its own cell."""
-        for s in spheres:
-            blended = s.radius <= self.grid.spacing
-            prog, vao = self._program(tonemap, blended)
+        """Each sphere, shaded from one irradiance map over its normals
+        (_object_map), one read a pixel."""
+        for i, s in enumerate(spheres):
+            size, tex = self._object_map(i, s)
+            prog, vao = self._program(tonemap, True)
             self._uniforms(prog, vp, exposure)
-            lo, tex = self._mask_or_map(s, blended)
-            tex.use(5 if not blended else 6)
-            if blended:
-                prog["u_object_map"].value = 6
-            else:
-                prog["u_mask_lo"].value = tuple(int(v) for v in lo)
+            tex.use(6)
+            prog["u_object_map"].value = 6
+            prog["u_map_size"].value = int(size)
             prog["u_center"].value = tuple(float(v) for v in s.center)
             prog["u_radius"].value = float(s.radius)
             prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
@@ -120,40 +132,50 @@ class ProbeObjects:
 
     def _uniforms(self, prog, vp, exposure):
         g = self.grid
-        prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
         for name, value in (("u_origin", tuple(float(v) for v in g.origin)), ("u_spacing", float(g.spacing)),
                             ("u_dims", tuple(int(v) for v in g.dims)), ("u_irradiance", 3), ("u_depth", 4),
                             ("u_mask", 5), ("u_irr_size", int(g.irradiance.shape[1])),
                             ("u_depth_size", int(g.depth.shape[1])), ("u_exposure", float(exposure))):
             if name in prog:
                 prog[name].value = value
+        if "u_view_proj" in prog:
+            prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
         self.irr.use(3)
         self.depth.use(4)
 
-    def _mask_or_map(self, s, blended):
-        """(first probe, texture): the object's probe mask, or its blended
-        map; kept while the object stands still."""
+    def _object_map(self, i, s):
+        """(side, texture): the sphere's irradiance over its normals. No
+        larger than a probe cell: its probes blended at its centre
+        (object_map, the probes' map size); larger: the per-point sum at
+        each of SURFACE_MAP squared normals' points (sphere_map), its
+        probes masked by what its centre sees. The i-th object of each
+        kind has one texture for the viewer's life, rewritten when it
+        moves. The map is made on the CPU: a GPU pass into a texture the
+        same frame reads made llvmpipe stop and finish it (8 ms a frame
+        while an object moved, against 2 ms here)."""
         import moderngl
-        from baker.probes.sample import object_map
-        key = (tuple(s.center), float(s.radius), blended)
-        if key not in self.masks:
-            for _, old in self.masks.values():
-                old.release()
-            self.masks.clear()
-            if blended:
-                m = np.ascontiguousarray(object_map(self.grid, s.center, self.bvh), np.float32)
-                tex = self.ctx.texture((m.shape[1], m.shape[0]), 3, m.tobytes(), dtype="f4")
-                lo = np.zeros(3, np.int64)
-            else:
-                lo, mask = probe_mask(self.grid, s.center, s.radius, self.bvh)
-                tex = self.ctx.texture3d(mask.shape[::-1], 1, mask.tobytes(), dtype="u1")
+        from baker.probes.sample import object_map, sphere_map
+        kind = "blended" if s.radius <= self.grid.spacing else "surface"
+        key = (tuple(s.center), float(s.radius))
+        if (kind, i) not in self.maps:
+            size = self.grid.irradiance.shape[1] if kind == "blended" else SURFACE_MAP
+            tex = self.ctx.texture((size, size), 3, dtype="f4")
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self.masks[key] = (lo, tex)
-        return self.masks[key]
+            self.maps[(kind, i)] = [size, tex, None]
+        size, tex, held = self.maps[(kind, i)]
+        if held != key:
+            if kind == "blended":
+                m = object_map(self.grid, s.center, self.bvh)
+            else:
+                m = sphere_map(self.grid, s.center, s.radius, probe_seen(self.grid, s.center, s.radius, self.bvh),
+                               size)
+            tex.write(np.ascontiguousarray(m, np.float32).tobytes())
+            self.maps[(kind, i)][2] = key
+        return size, tex
 
     def release(self):
         for prog, vao in self.programs.values():
             vao.release()
             prog.release()
-        for obj in (self.irr, self.depth, self.vbo, *(t for _, t in self.masks.values())):
+        for obj in (self.irr, self.depth, self.vbo, *(m[1] for m in self.maps.values())):
             obj.release()

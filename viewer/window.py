@@ -155,6 +155,8 @@ class Walkthrough:
         self.preview = None
         self.sphere = None   # objects.Sphere the user dropped (O), lit by the probes
         self.note = ""
+        lo, hi = bake.scene.bounds()   # once: the bounds of a large scene take milliseconds, a frame's budget
+        self.extent = float(np.linalg.norm(hi - lo)) or 1.0
 
     # -- glfw ---------------------------------------------------------------
     def _open(self):
@@ -247,10 +249,6 @@ class Walkthrough:
             return camera, False
         return camera, True
 
-    def _extent(self) -> float:
-        lo, hi = self.bake.scene.bounds()
-        return float(np.linalg.norm(hi - lo)) or 1.0
-
     def _toggle_sphere(self, camera):
         from .objects import Sphere
         if self.sphere is not None:
@@ -258,7 +256,7 @@ class Walkthrough:
         elif self.bake.probes is None:
             self.note = "no probes in this bake (baked with --no-probes)"
         else:
-            e = self._extent()
+            e = self.extent
             centre = np.asarray(camera.position) + SPHERE_AHEAD * e * camera.forward
             self.sphere = Sphere(tuple(float(v) for v in centre), SPHERE_SIZE * e)
 
@@ -276,7 +274,7 @@ class Walkthrough:
             if k in self.input.held:
                 step += sign * axes[axis]
         if step.any():
-            c = np.asarray(self.sphere.center) + 0.1 * self._extent() * dt * step
+            c = np.asarray(self.sphere.center) + 0.1 * self.extent * dt * step
             self.sphere = _replace(self.sphere, center=tuple(float(v) for v in c))
 
     def _preview_frame(self, ctx, renderer, camera, w, h):

@@ -188,3 +188,122 @@ def object_map(grid, center, bvh) -> np.ndarray:
         out += w * grid.irradiance[flat]
         total += w
     return (out / total if total > 0 else out).astype(np.float32)
+
+
+def sphere_map(grid, center, radius, seen, size) -> np.ndarray:
+    """(size, size, 3) float32: the irradiance over a sphere's surface as
+    an octahedral map of its normals: texel n holds interpolate at the
+    point center + radius n with normal n, the probes weighted by
+    seen (count,) (1 where a probe is valid and seen from the centre,
+    viewer/objects.probe_mask: interpolate's anchor test, once per probe
+    instead of once per point). A sphere's point is a function of its
+    normal, so the map read at a pixel's normal is that pixel's
+    interpolate to the map's resolution: what the viewer shades a sphere
+    larger than a probe cell with, one read a pixel. One thread: it runs
+    every frame an object moves, beside the viewer's software rasterizer."""
+    out = np.zeros((size, size, 3), np.float32)
+    _sphere_map(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
+                np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
+                np.asarray(center, np.float64), float(radius), out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _oct_col_row(x, y, z, size):
+    """Octahedral (u, v) * size of unit direction (x, y, z) (oct_uv)."""
+    s = abs(x) + abs(y) + abs(z)
+    px, py = x / s, y / s
+    if z < 0.0:
+        px, py = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
+    return 0.5 * (px + 1.0) * size, 0.5 * (py + 1.0) * size
+
+
+@njit(cache=True, inline="always")
+def _wrap1(row, col, size):
+    """_wrap for one texel."""
+    out_r = row < 0 or row >= size
+    out_c = col < 0 or col >= size
+    r = size - 1 - row if (out_c and not out_r) else row
+    c = size - 1 - col if (out_r and not out_c) else col
+    if out_r:
+        r = 0 if row < 0 else size - 1
+    if out_c:
+        c = 0 if col < 0 else size - 1
+    if out_r and out_c:
+        r = size - 1 if row < 0 else 0
+        c = size - 1 if col < 0 else 0
+    return r, c
+
+
+@njit(cache=True)
+def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
+    size = out.shape[0]
+    isz, dsz = irr.shape[1], depth.shape[1]
+    base = np.empty(3, np.int64)
+    frac = np.empty(3)
+    for row in range(size):
+        for col in range(size):
+            # the texel centre's normal (the inverse of oct_uv)
+            px, py = 2.0 * (col + 0.5) / size - 1.0, 2.0 * (row + 0.5) / size - 1.0
+            nz = 1.0 - abs(px) - abs(py)
+            nx, ny = px, py
+            if nz < 0.0:
+                nx, ny = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
+            ln = np.sqrt(nx * nx + ny * ny + nz * nz)
+            n = (nx / ln, ny / ln, nz / ln)
+            x = (center[0] + radius * n[0], center[1] + radius * n[1], center[2] + radius * n[2])
+            for k in range(3):
+                g = (x[k] - origin[k]) / spacing
+                b = min(max(int(np.floor(g)), 0), max(dims[k] - 2, 0))
+                base[k] = b
+                frac[k] = min(max(g - b, 0.0), 1.0) if dims[k] > 1 else 0.0
+            lx, ly, lz = x[0] + BIAS * spacing * n[0], x[1] + BIAS * spacing * n[1], x[2] + BIAS * spacing * n[2]
+            # the normal's texel in the probes' irradiance maps, as irradiance_map_at reads it
+            u, v = _oct_col_row(n[0], n[1], n[2], isz)
+            fx, fy = u - 0.5, v - 0.5
+            c0, r0 = int(np.floor(fx)), int(np.floor(fy))
+            fx, fy = fx - c0, fy - r0
+            ra, ca = _wrap1(r0, c0, isz)
+            rb, cb = _wrap1(r0, c0 + 1, isz)
+            rc, cc = _wrap1(r0 + 1, c0, isz)
+            rd, cd = _wrap1(r0 + 1, c0 + 1, isz)
+            wa, wb, wc, wd = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+            t0 = t1 = t2 = 0.0
+            total = 0.0
+            for corner in range(8):
+                i0 = min(base[0] + (corner & 1), dims[0] - 1)
+                i1 = min(base[1] + ((corner >> 1) & 1), dims[1] - 1)
+                i2 = min(base[2] + ((corner >> 2) & 1), dims[2] - 1)
+                flat = i0 + dims[0] * (i1 + dims[1] * i2)
+                if seen[flat] == 0:
+                    continue
+                w = (frac[0] if corner & 1 else 1.0 - frac[0]) * (frac[1] if (corner >> 1) & 1 else 1.0 - frac[1]) \
+                    * (frac[2] if (corner >> 2) & 1 else 1.0 - frac[2])
+                vx = lx - (origin[0] + spacing * i0)
+                vy = ly - (origin[1] + spacing * i1)
+                vz = lz - (origin[2] + spacing * i2)
+                d = np.sqrt(vx * vx + vy * vy + vz * vz)
+                dd = max(d, 1e-12)
+                du, dv = _oct_col_row(vx / dd, vy / dd, vz / dd, dsz)
+                dc, dr = min(max(int(du), 0), dsz - 1), min(max(int(dv), 0), dsz - 1)
+                mean, mean2 = float(depth[flat, dr, dc, 0]), float(depth[flat, dr, dc, 1])
+                var = max(mean2 - mean * mean, MIN_VAR * spacing * spacing)
+                cheb = 1.0 if d <= mean else var / (var + (d - mean) * (d - mean))
+                cheb = cheb * cheb * cheb
+                if cheb < CRUSH:
+                    continue
+                w *= cheb
+                for ch in range(3):
+                    e = wa * irr[flat, ra, ca, ch] + wb * irr[flat, rb, cb, ch] + wc * irr[flat, rc, cc, ch] \
+                        + wd * irr[flat, rd, cd, ch]
+                    if ch == 0:
+                        t0 += w * e
+                    elif ch == 1:
+                        t1 += w * e
+                    else:
+                        t2 += w * e
+                total += w
+            if total > 0.0:
+                out[row, col, 0] = max(t0 / total, 0.0)
+                out[row, col, 1] = max(t1 / total, 0.0)
+                out[row, col, 2] = max(t2 / total, 0.0)
