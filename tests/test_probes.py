@@ -483,3 +483,91 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh)
     assert len(ys) > 200
     assert np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()
+
+
+def test_the_probe_view_draws_each_probe_lit_by_its_sh(cornell, furnace_bake, gl, tmp_path):
+    """voxview's probe view (--probes, key G): in the Cornell box, the pixel
+    through the middle of each probe's sphere that nothing hides (no other
+    probe, no block) reads a white diffuse sphere's radiance under that
+    probe's SH at the pixel's normal, E(n) / pi (within 2%); an invalid
+    probe is flat red. In the furnace every probe reads the room's own
+    radiance, so the view with the probes is the view without them."""
+    from baker.probes.sample import probe_irradiance_sh
+    from baker.render import camera_array
+    from baker.scene import camera_for
+    from baker.scene.prepared import prepare
+    from baker.kernels.traverse import any_hit_batch
+    from viewer.objects import PROBE_SIZE
+    from viewer.snapshot import snapshot
+    path = tmp_path / "c.glb"
+    write_bake(str(path), bake_scene(cornell, small(probe_spacing=0.1)).bake)
+    bake = read_bake(str(path))
+    g = bake.probes
+    w = h = 384
+    cam = camera_for(bake.scene, None)
+    img = snapshot(bake, cam, w, h, samples=1, ctx=gl, probes=True)
+    c = camera_array(cam, w, h)
+    pos = g.positions()
+    r = PROBE_SIZE * g.spacing
+    v = pos - c[0]
+    t = v @ c[1] / (c[1] @ c[1])
+    a = (v @ c[2]) / (t * (c[2] @ c[2]))
+    b = (v @ c[3]) / (t * (c[3] @ c[3]))
+    xs, ys = np.floor((a + 1) / 2 * w).astype(int), np.floor((1 - b) / 2 * h).astype(int)
+    dist = np.linalg.norm(v, axis=1)
+    u = v / dist[:, None]
+    # hidden: another probe's sphere nearer along the ray, or the room's geometry before it
+    side = np.linalg.norm(np.cross(u[:, None, :], pos[None, :, :] - c[0]), axis=2)
+    nearer = (dist[None, :] < dist[:, None]) & (side < 3 * r)
+    np.fill_diagonal(nearer, False)
+    blocked = any_hit_batch(prepare(cornell).bvh.arrays, np.repeat(c[0][None], len(pos), 0), u, 0.0, dist - 2 * r)
+    shown = (t > 0) & (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h) & ~nearer.any(axis=1) & ~blocked
+    assert shown.sum() >= 10 and (shown & g.valid).sum() >= 10
+    checked = 0
+    for i in np.nonzero(shown)[0]:
+        x, y = xs[i], ys[i]
+        d = c[1] + (2 * (x + 0.5) / w - 1) * c[2] + (1 - 2 * (y + 0.5) / h) * c[3]
+        d /= np.linalg.norm(d)
+        oc = c[0] - pos[i]
+        tt = d @ oc
+        disc = tt * tt - (oc @ oc - r * r)
+        if disc < (0.5 * r) ** 2:   # the pixel's ray only grazes the sphere
+            continue
+        n = (c[0] + (-tt - np.sqrt(disc)) * d - pos[i]) / r
+        if not g.valid[i]:
+            assert np.allclose(img[y, x], (0.6, 0.0, 0.0)), (i, img[y, x])
+            continue
+        want = np.maximum(probe_irradiance_sh(g.sh[i][None], n[None])[0], 0) / np.pi
+        assert np.abs(img[y, x] - want).max() <= 0.02 * want.max() + 1e-4, (i, img[y, x], want)
+        checked += 1
+    assert checked >= 10
+    furnace = furnace_bake.bake
+    fcam = camera_for(furnace.scene, None)
+    with_probes = snapshot(furnace, fcam, 64, 64, samples=1, ctx=gl, probes=True)
+    without = snapshot(furnace, fcam, 64, 64, samples=1, ctx=gl)
+    assert np.abs(with_probes / without - 1).max() < 0.01
+
+
+def test_the_probe_view_from_the_command_line(cornell, tmp_path):
+    """`voxview snapshot --probes` draws the probes (the image differs from
+    the one without); on a bake made with --no-probes, or in a debug view,
+    one line and exit 2 before any drawing."""
+    from PIL import Image
+    from viewer.cli import main
+    from tests.conftest import cli
+    with_probes, without = tmp_path / "c.glb", tmp_path / "none.glb"
+    write_bake(str(with_probes), bake_scene(cornell, small(probe_spacing=0.1)).bake)
+    write_bake(str(without), bake_scene(cornell, small(probe_copies=0)).bake)
+    shots = {}
+    for name, extra in (("probes", ["--probes"]), ("plain", [])):
+        out = tmp_path / f"{name}.png"
+        code, _, err = cli("snapshot", with_probes, "-o", out, "--width", 96, "--height", 96, "--samples", 1,
+                           "--exposure", 0, *extra, main=main)
+        assert code == 0, err
+        shots[name] = np.asarray(Image.open(out).convert("RGB"), float)
+    assert (np.abs(shots["probes"] - shots["plain"]).sum(axis=2) > 10).mean() > 0.02
+    for bake, extra, message in ((without, [], "no irradiance probes"), (with_probes, ["--mode", "checker"], "lightmap")):
+        out = tmp_path / "x.png"
+        code, _, err = cli("snapshot", bake, "-o", out, "--probes", *extra, main=main)
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+        assert not out.exists()

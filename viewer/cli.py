@@ -20,7 +20,8 @@ EPILOG = """examples:
   voxview glinfo
 
 Keys in the window: W A S D (Q E down/up) move, Shift faster, drag to look, wheel zooms, 1-9 cameras,
-+/- exposure (0 automatic), F1-F5 or M views, P the progressive preview, B bicubic, F12 screenshot, Esc.
++/- exposure (0 automatic), F1-F5 or M views, P the progressive preview, B bicubic, O a sphere lit by the
+probes (arrow keys, Page Up/Down move it), G the probes, F12 screenshot, Esc.
 """
 COMMANDS = ("walk", "snapshot", "glinfo")
 
@@ -43,8 +44,9 @@ def cmd_walk(args):
         check_output_path(args.screenshot, (".png",), inputs=[args.bake])
     bake = _read(args.bake)
     cam = _camera(bake, args.camera)
+    _check_probes(args, bake)
     result = Walkthrough(bake, args.width, args.height, cam, args.exposure, args.mode, script, args.frames,
-                         args.screenshot, title=f"voxview {args.bake}").run()
+                         args.screenshot, title=f"voxview {args.bake}", show_probes=args.probes).run()
     secs = result["seconds"]
     print(f"{result['frames']} frames in {secs:.2f} s ({result['frames'] / max(secs, 1e-9):.1f} fps)")
     return 0
@@ -63,15 +65,25 @@ def cmd_snapshot(args):
     if objects and bake.probes is None:
         raise VoxgiError("the bake holds no irradiance probes for --object: bake it again without --no-probes",
                          args.bake)
+    _check_probes(args, bake)
     cam = _camera(bake, args.camera)
     from baker.progress import bar
     with bar(args.frames if args.mode == "preview" else 0, "preview", "frame", args.mode == "preview") as b:
         img = snapshot(bake, cam, args.width, args.height, args.mode, args.samples, args.bicubic,
-                       frames=args.frames, per_frame=args.vpls_per_frame, progress=b.update, objects=objects)
+                       frames=args.frames, per_frame=args.vpls_per_frame, progress=b.update, objects=objects,
+                       probes=args.probes)
     checkpoint()
     write_image(args.output, img, args.exposure)
     print(f"wrote {args.output}  ({args.width}x{args.height}, {args.mode})")
     return 0
+
+
+def _check_probes(args, bake):
+    if args.probes and bake.probes is None:
+        raise VoxgiError("the bake holds no irradiance probes for --probes: bake it again without --no-probes",
+                         args.bake)
+    if args.probes and args.mode != "lightmap":
+        raise VoxgiError("--probes are drawn in the lightmap view (--mode lightmap)")
 
 
 def _objects(args):
@@ -135,6 +147,8 @@ def build_parser():
     p.add_argument("--script", metavar="FILE.json", help="scripted input events (see viewer/window.py)")
     p.add_argument("--frames", type=integer(1, 1 << 24), help="close after this many frames")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame here")
+    p.add_argument("--probes", action="store_true",
+                   help="show the irradiance probes as small spheres lit by their SH, invalid ones red (key G)")
     p.set_defaults(func=cmd_walk)
 
     p = sub.add_parser("snapshot", help="render a bake headless (EGL, no display) to an image",
@@ -161,6 +175,9 @@ def build_parser():
     p.add_argument("--at", type=_vector, metavar="X,Y,Z", help="the object's centre")
     p.add_argument("--radius", type=number(0, 1e9, lo_open=True), metavar="R", help="the sphere's radius")
     p.add_argument("--object-albedo", type=number(0, 1), metavar="A", help="the object's albedo (default 0.8)")
+    p.add_argument("--probes", action="store_true",
+                   help="draw the irradiance probes as small spheres lit by their SH (a white diffuse sphere's "
+                        "light), invalid ones (inside walls, outside a closed building) red")
     p.set_defaults(func=cmd_snapshot)
 
     p = sub.add_parser("glinfo", help="check headless OpenGL (EGL) and build every shipped shader",

@@ -1,16 +1,15 @@
 """Moving objects lit by the bake's irradiance probes (baker/probes/): a
-diffuse sphere placed in the scene, drawn with shaders/probe_object.*.
+diffuse sphere placed in the scene, drawn with shaders/probe_object.*;
+and the probe view, the probes themselves (shaders/probe_grid.*).
 
-The probes' irradiance maps and distance moments go to the GPU once as
-float textures (probe-major, WIDTH texels a row). Per object, the CPU
-decides which probes around it count: valid ones that its centre sees (a
-ray against the scene's BVH), the exact test that keeps an object beside
-a wall lit by its own side only; the shader reads that mask and weighs
-the rest as baker/probes/sample.py does. A sphere larger than a probe
-cell gets that per-point sum over its whole surface once per position,
-into an octahedral map of its normals (a sphere's point is a function of
-its normal), and its pixels read the map; a smaller one reads its probes
-blended at its centre (probe/sample.py: object_map).
+Per object, the CPU decides which probes around it count: valid ones
+that its centre sees (a ray against the scene's BVH), the exact test
+that keeps an object beside a wall lit by its own side only. It then
+makes the object's irradiance map over its normals, which the shader
+reads once a pixel: a sphere larger than a probe cell gets
+baker/probes/sample.py's per-point sum at each of the map's normals'
+points on it (sphere_map: a sphere's point is a function of its
+normal); a smaller one its probes blended at its centre (object_map).
 """
 from __future__ import annotations
 
@@ -18,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-WIDTH = 4096   # texels per row of the packed probe textures (shaders/probe_object.frag)
+WIDTH = 4096   # texels per row of the probe view's packed SH texture (shaders/probe_grid.frag)
 SURFACE_MAP = 128   # texels a side of a large sphere's map: its mean is the per-pixel sum's within 0.01% (64: 0.5%)
 
 
@@ -54,7 +53,7 @@ def probe_mask(grid, center, radius, bvh):
     flat = k[:, 0] + dims[0] * (k[:, 1] + dims[1] * k[:, 2])
     ok = grid.valid[flat] & (_sees(bvh, np.repeat(c[None], len(k), 0), p) > 0)
     shape = tuple(int(b - a + 1) for a, b in zip(lo, hi))   # (x, y, z)
-    return lo, ok.reshape(shape).transpose(2, 1, 0).astype(np.uint8)   # z, y, x: a 3D texture's layout
+    return lo, ok.reshape(shape).transpose(2, 1, 0).astype(np.uint8)   # z, y, x: the grid's flat order, x fastest
 
 
 def probe_seen(grid, center, radius, bvh) -> np.ndarray:
@@ -90,28 +89,18 @@ class ProbeObjects:
         from baker.scene.prepared import prepare
         if bake.probes is None:
             raise VoxgiError("the bake holds no irradiance probes: bake it again without --no-probes")
-        import moderngl
         self.ctx = ctx
-        self.grid = g = bake.probes
-        irr = _packed(g.irradiance, 3)
-        depth = _packed(g.depth, 2)
-        if max(len(irr), len(depth)) > 16384:
-            raise VoxgiError(f"{g.count:,} probes are more than the viewer's textures hold")
-        self.irr = ctx.texture((WIDTH, len(irr)), 3, irr.tobytes(), dtype="f4")
-        self.depth = ctx.texture((WIDTH, len(depth)), 2, depth.tobytes(), dtype="f4")
-        for t in (self.irr, self.depth):
-            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.grid = bake.probes
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
         self.maps = {}   # (kind, i) -> [side, texture, (centre, radius) it holds]
         self.bvh = prepare(bake.scene).bvh.arrays
 
-    def _program(self, tonemap, blended):
-        key = (bool(tonemap), bool(blended))
+    def _program(self, tonemap):
+        key = bool(tonemap)
         if key not in self.programs:
             from .context import build_program
-            prog = build_program(self.ctx, "probe_object.vert", "probe_object.frag",
-                                 {"TONEMAP": int(tonemap), "BLENDED": int(blended)})
+            prog = build_program(self.ctx, "probe_object.vert", "probe_object.frag", {"TONEMAP": int(tonemap)})
             self.programs[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, "3f", "in_position")]))
         return self.programs[key]
 
@@ -120,8 +109,10 @@ class ProbeObjects:
         (_object_map), one read a pixel."""
         for i, s in enumerate(spheres):
             size, tex = self._object_map(i, s)
-            prog, vao = self._program(tonemap, True)
-            self._uniforms(prog, vp, exposure)
+            prog, vao = self._program(tonemap)
+            prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
+            if "u_exposure" in prog:
+                prog["u_exposure"].value = float(exposure)
             tex.use(6)
             prog["u_object_map"].value = 6
             prog["u_map_size"].value = int(size)
@@ -129,19 +120,6 @@ class ProbeObjects:
             prog["u_radius"].value = float(s.radius)
             prog["u_albedo"].value = tuple(float(v) for v in s.albedo)
             vao.render(moderngl_triangles())
-
-    def _uniforms(self, prog, vp, exposure):
-        g = self.grid
-        for name, value in (("u_origin", tuple(float(v) for v in g.origin)), ("u_spacing", float(g.spacing)),
-                            ("u_dims", tuple(int(v) for v in g.dims)), ("u_irradiance", 3), ("u_depth", 4),
-                            ("u_mask", 5), ("u_irr_size", int(g.irradiance.shape[1])),
-                            ("u_depth_size", int(g.depth.shape[1])), ("u_exposure", float(exposure))):
-            if name in prog:
-                prog[name].value = value
-        if "u_view_proj" in prog:
-            prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
-        self.irr.use(3)
-        self.depth.use(4)
 
     def _object_map(self, i, s):
         """(side, texture): the sphere's irradiance over its normals. No
@@ -177,5 +155,58 @@ class ProbeObjects:
         for prog, vao in self.programs.values():
             vao.release()
             prog.release()
-        for obj in (self.irr, self.depth, self.vbo, *(m[1] for m in self.maps.values())):
+        for obj in (self.vbo, *(m[1] for m in self.maps.values())):
             obj.release()
+
+
+PROBE_SIZE = 0.12   # the probe view's spheres' radius, in probe spacings
+
+
+class ProbeGridView:
+    """The probe view: every probe of a bake as a small sphere where it
+    stands, shaded by its SH (a white diffuse sphere's radiance; invalid
+    probes flat red), drawn into the bound framebuffer with one instanced
+    call."""
+
+    def __init__(self, ctx, bake):
+        from baker.errors import VoxgiError
+        if bake.probes is None:
+            raise VoxgiError("the bake holds no irradiance probes: bake it again without --no-probes")
+        from .context import build_program
+        self.ctx = ctx
+        self.grid = g = bake.probes
+        table = np.zeros((g.count, 10, 3), np.float32)
+        table[:, :9] = g.sh
+        table[:, 9, 0] = g.valid
+        packed = _packed(table, 3)
+        if len(packed) > 16384:
+            raise VoxgiError(f"{g.count:,} probes are more than the viewer's textures hold")
+        self.sh = ctx.texture((WIDTH, len(packed)), 3, packed.tobytes(), dtype="f4")
+        import moderngl
+        self.sh.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.vbo = ctx.buffer(sphere_mesh(2).tobytes())
+        self.programs = {}
+        self._build = build_program
+
+    def draw(self, vp, tonemap=True, exposure=1.0):
+        key = bool(tonemap)
+        if key not in self.programs:
+            prog = self._build(self.ctx, "probe_grid.vert", "probe_grid.frag", {"TONEMAP": int(tonemap)})
+            self.programs[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, "3f", "in_position")]))
+        prog, vao = self.programs[key]
+        g = self.grid
+        prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
+        for name, value in (("u_origin", tuple(float(v) for v in g.origin)), ("u_spacing", float(g.spacing)),
+                            ("u_dims", tuple(int(v) for v in g.dims)), ("u_radius", PROBE_SIZE * float(g.spacing)),
+                            ("u_sh", 7), ("u_exposure", float(exposure))):
+            if name in prog:
+                prog[name].value = value
+        self.sh.use(7)
+        vao.render(moderngl_triangles(), instances=g.count)
+
+    def release(self):
+        for prog, vao in self.programs.values():
+            vao.release()
+            prog.release()
+        self.sh.release()
+        self.vbo.release()

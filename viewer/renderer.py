@@ -82,6 +82,7 @@ class Renderer:
                 self.emit_textures[i] = tex
         self.draws = draw_groups(bake)
         self.probe_objects = None   # objects.ProbeObjects, made when an object is first drawn
+        self.probe_view = None      # objects.ProbeGridView, made when the probes are first shown
         self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
@@ -126,10 +127,12 @@ class Renderer:
         """Near and far planes around the scene's bounds."""
         return self.extent * 1e-4, self.extent * 4.0
 
-    def render(self, camera, width, height, mode="lightmap", exposure=1.0, tonemap=True, bicubic=False, objects=()):
+    def render(self, camera, width, height, mode="lightmap", exposure=1.0, tonemap=True, bicubic=False, objects=(),
+               probes=False):
         """Draws the bake seen by `camera` (a scene Camera or FlyCamera)
         into the bound framebuffer (viewport width x height), with the
-        moving `objects` (objects.Sphere) lit by its probes."""
+        moving `objects` (objects.Sphere) lit by its probes, and with
+        `probes` the probes themselves (objects.ProbeGridView)."""
         import moderngl
         ctx = self.ctx
         near, far = self.clip_range(camera)
@@ -181,10 +184,16 @@ class Renderer:
                 from .objects import ProbeObjects
                 self.probe_objects = ProbeObjects(ctx, self.bake)
             self.probe_objects.draw(vp, objects, tonemap, exposure)
+        if probes:
+            if self.probe_view is None:
+                from .objects import ProbeGridView
+                self.probe_view = ProbeGridView(ctx, self.bake)
+            self.probe_view.draw(vp, tonemap, exposure)
 
     def release(self):
-        if self.probe_objects is not None:
-            self.probe_objects.release()
+        for view in (self.probe_objects, self.probe_view):
+            if view is not None:
+                view.release()
         for prog, vao in (*self.variants.values(), *self.sky_programs.values()):
             vao.release()
             prog.release()

@@ -17,7 +17,8 @@ def supersampling(width, height, samples=4) -> int:
     return max(1, min(int(samples), MAX_SIDE // max(width, height)))
 
 
-def render_offscreen(ctx, renderer, camera, width, height, mode="lightmap", samples=4, bicubic=False, objects=()):
+def render_offscreen(ctx, renderer, camera, width, height, mode="lightmap", samples=4, bicubic=False, objects=(),
+                     probes=False):
     """Linear radiance (height, width, 3) float32 (mode 'lightmap'; the
     debug views' colours otherwise), rows top to bottom."""
     s = supersampling(width, height, samples)
@@ -28,7 +29,7 @@ def render_offscreen(ctx, renderer, camera, width, height, mode="lightmap", samp
     try:
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-        renderer.render(camera, w, h, mode, tonemap=False, bicubic=bicubic, objects=objects)
+        renderer.render(camera, w, h, mode, tonemap=False, bicubic=bicubic, objects=objects, probes=probes)
         raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1, :, :3]
     finally:
         fbo.release()
@@ -39,12 +40,13 @@ def render_offscreen(ctx, renderer, camera, width, height, mode="lightmap", samp
 
 
 def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=4, bicubic=False, ctx=None,
-             frames=64, per_frame=16, progress=None, objects=()):
+             frames=64, per_frame=16, progress=None, objects=(), probes=False):
     """A bake's snapshot from `camera` (a Camera, name, index or None: the
     bake's first), on a standalone EGL context (or `ctx`). mode 'preview':
     the progressive instant radiosity after `frames` frames of `per_frame`
     VPLs, at the pixels' centres (as the CPU's). objects: moving objects
-    (objects.Sphere) lit by the bake's probes (mode 'lightmap')."""
+    (objects.Sphere) lit by the bake's probes; probes: the probes drawn as
+    small spheres lit by their SH (objects.ProbeGridView)."""
     from baker.scene import camera_for
     from .context import headless_context
     from .renderer import Renderer
@@ -64,7 +66,7 @@ def snapshot(bake, camera=None, width=512, height=512, mode="lightmap", samples=
             img = pv.image()
             pv.release()
         else:
-            img = render_offscreen(ctx, r, cam, width, height, mode, samples, bicubic, objects)
+            img = render_offscreen(ctx, r, cam, width, height, mode, samples, bicubic, objects, probes)
         r.release()
         return img
     finally:

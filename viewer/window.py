@@ -10,6 +10,7 @@ glfw). Keys and mouse become `Controls` for the pure-maths camera
     P               progressive instant-radiosity preview on/off (restarts when the camera moves)
     B               bicubic lightmap filtering on/off   Esc     quit
     O               drop a sphere in front of the camera, lit by the bake's probes (again: remove it)
+    G               show the probes as small spheres lit by their SH (invalid ones red) on/off
     arrow keys      move the sphere (left, right, away, nearer); Page Up / Page Down: up, down
 
 Scripted input (`--script FILE.json`, for tests and demos): a list of
@@ -135,7 +136,7 @@ def load_script(path):
 
 class Walkthrough:
     def __init__(self, bake, width=1280, height=720, camera=None, exposure_ev=None, mode="lightmap",
-                 script=None, frames=None, screenshot=None, fixed_dt=None, title="voxview"):
+                 script=None, frames=None, screenshot=None, fixed_dt=None, title="voxview", show_probes=False):
         self.bake = bake
         self.size = (width, height)
         self.start_camera = camera
@@ -154,6 +155,7 @@ class Walkthrough:
             self.mode = "lightmap"
         self.preview = None
         self.sphere = None   # objects.Sphere the user dropped (O), lit by the probes
+        self.show_probes = show_probes   # the probes drawn (G)
         self.note = ""
         lo, hi = bake.scene.bounds()   # once: the bounds of a large scene take milliseconds, a frame's budget
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
@@ -179,7 +181,7 @@ class Walkthrough:
         return glfw, win
 
     def _callbacks(self, glfw, win):
-        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBPO0123456789"}
+        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBPOG0123456789"}
         names.update({glfw.KEY_LEFT: "LEFT", glfw.KEY_RIGHT: "RIGHT", glfw.KEY_UP: "UP", glfw.KEY_DOWN: "DOWN",
                       glfw.KEY_PAGE_UP: "PAGEUP", glfw.KEY_PAGE_DOWN: "PAGEDOWN"})
         names.update({glfw.KEY_LEFT_SHIFT: "SHIFT", glfw.KEY_RIGHT_SHIFT: "SHIFT", glfw.KEY_F12: "F12",
@@ -243,6 +245,11 @@ class Walkthrough:
             self.preview_on = not self.preview_on
         elif key == "O":
             self._toggle_sphere(camera)
+        elif key == "G":
+            if self.bake.probes is None:
+                self.note = "no probes in this bake (baked with --no-probes)"
+            else:
+                self.show_probes = not self.show_probes
         elif key == "F12":
             self._screenshot(ctx)
         elif key == "ESCAPE":
@@ -343,7 +350,8 @@ class Walkthrough:
                     ctx.screen.use()
                     ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
                     objects = (self.sphere,) if self.sphere is not None and self.mode == "lightmap" else ()
-                    renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic, objects)
+                    renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic, objects,
+                                    self.show_probes and self.mode == "lightmap")
                 fps_n += 1
                 if now - fps_t >= 0.5:
                     fps, fps_t, fps_n = fps_n / (now - fps_t), now, 0
@@ -351,7 +359,7 @@ class Walkthrough:
                 view = (f"preview {self.preview.used} VPLs" if self.preview_on and self.preview is not None
                         else f"{self.mode}{' bicubic' if self.bicubic else ''}")
                 overlay.draw(f"{rate}   {view}   EV {self.exposure_ev:+.1f}   F1-F5 views, P preview, "
-                             f"+/- exposure, 1-9 cameras, O sphere{'   ' + self.note if self.note else ''}", w, h)
+                             f"+/- exposure, 1-9 cameras, O sphere, G probes{'   ' + self.note if self.note else ''}", w, h)
                 frame += 1
                 if self.frames is not None and frame >= self.frames:
                     if self.screenshot_path:
