@@ -9,8 +9,8 @@ share of valid probes and the bytes the probe block adds to the bake
 file. With --window: voxview's window under Xvfb (llvmpipe) at 1280x720
 on the scene's default bake, with and without a sphere dropped at the
 first frame, standing still or moved by the arrow keys every frame
-(right and left in turn): the rate over 240 frames, and the steady rate from the
-difference between runs of 60 and 240 frames (the first drop builds the
+(right and left in turn): the rate over 600 frames, and the steady rate from the
+difference between runs of 60 and 600 frames (the first drop builds the
 scene's BVH for the sphere's visibility test and its shader).
 """
 from __future__ import annotations
@@ -57,7 +57,7 @@ def probe_rows(scenes, presets):
     return rows
 
 
-FRAMES_SHORT, FRAMES_LONG = 60, 240
+FRAMES_SHORT, FRAMES_LONG = 60, 600
 SWING = 20   # frames the moving sphere goes one way before it turns
 
 

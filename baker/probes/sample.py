@@ -235,7 +235,7 @@ def _wrap1(row, col, size):
     return r, c
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True, error_model="numpy")
 def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
     size = out.shape[0]
     isz, dsz = irr.shape[1], depth.shape[1]
