@@ -1,12 +1,16 @@
 """Irradiance probes: count, time and bytes per scene and preset, and the
 viewer's frame time with a sphere lit by them.
 
-    python bench/probes.py [--scenes cornell_box,walkthrough] [--presets preview,default] [--window] [--json]
+    python bench/probes.py [--scenes cornell_box,walkthrough] [--presets preview,default] [--accuracy] [--window]
+                           [--json]
 
 Per scene and preset: the solve (as the bake does it), then the probe
 stage alone (bake_probes, timed twice, the faster kept), the grid, the
 share of valid probes and the bytes the probe block adds to the bake
-file. With --window: voxview's window under Xvfb (llvmpipe) at 1280x720
+file. With --accuracy: at default, the irradiance of probes clear of
+surfaces and of the grid interpolated at random points as clear, against
+the path tracer, for the 14 normals of a cube's faces and corners. With
+--window: voxview's window under Xvfb (llvmpipe) at 1280x720
 on the scene's default bake, with and without a sphere dropped at the
 first frame, standing still or moved by the arrow keys every frame
 (right and left in turn): the rate over 600 frames, and the steady rate from the
@@ -23,6 +27,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+import numpy as np
 
 from common import emit
 
@@ -101,17 +107,94 @@ def window_rows(scenes):
     return rows
 
 
+CUBE_NORMALS = np.array([v for a in range(3) for v in (np.eye(3)[a], -np.eye(3)[a])]
+                        + [np.array([x, y, z]) / 3 ** 0.5 for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+PICKED = 12   # probes and random points per scene
+
+
+def _errors(got, want):
+    """|got - want| / (want + 2% of the brightest), per normal: a normal that
+    sees almost nothing (out of the Cornell box's open front) is measured
+    against the point's light, not its own tiny value."""
+    return np.abs(got - want) / (want + 0.02 * want.max())
+
+
+def _clear_points(prepared, points, reach):
+    """Points whose 14 cube-normal rays meet nothing within `reach` and no
+    back face at all (not inside an object)."""
+    from baker.kernels.traverse import closest_hit_batch
+    n = len(CUBE_NORMALS)
+    o = np.repeat(points, n, 0)
+    d = np.tile(CUBE_NORMALS, (len(points), 1))
+    t, tri, _, _ = closest_hit_batch(prepared.bvh.arrays, o, d, 0.0, np.full(len(o), np.inf))
+    corners = prepared.scene.triangle_corners()[np.maximum(tri, 0)]
+    facing = np.einsum("ij,ij->i", np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), d)
+    back = (tri >= 0) & (facing > 0)
+    return ((t > reach) & ~back).reshape(len(points), n).all(axis=1)
+
+
+def accuracy_rows(scenes):
+    """Per scene at default: the irradiance maps of probes that see no
+    surface nearer than a voxel cell, and the grid interpolated at random
+    points as clear, against the path tracer's irradiance (8,192
+    directions x 4 paths) for the 14 normals of a cube's faces and corners."""
+    from baker.presets import bake_config
+    from baker.probes import bake_probes, grid_for, interpolate
+    from baker.probes.sample import irradiance_map_at
+    from baker.render.irradiance import path_traced_irradiance
+    from baker.scene import load_scene, prepare
+    from baker.solve import solve
+    rows = []
+    n = len(CUBE_NORMALS)
+    for name in scenes:
+        scene = load_scene(name)
+        prepared = prepare(scene)
+        cfg = bake_config("default")
+        solution = solve(prepared, cfg.solver)
+        lo, hi = scene.bounds()
+        g = bake_probes(prepared, solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget),
+                        cfg.probes.copies, cfg.solver.seed)
+        cell = float(solution.voxels.cell_size)
+        pos = g.positions()
+        rng = np.random.default_rng(7)
+        clear = np.nonzero(g.valid & (g.depth[..., 0].reshape(g.count, -1).min(axis=1) > cell))[0]
+        probe_err = []
+        for i in rng.choice(clear, min(PICKED, len(clear)), replace=False):
+            want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 8192, 4).sum(axis=1)
+            got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
+            probe_err.append(_errors(got, want))
+        candidates = lo + rng.random((40 * PICKED, 3)) * (hi - lo)
+        points = candidates[_clear_points(prepared, candidates, cell)][:PICKED]
+        point_err = []
+        for p in points:
+            want = path_traced_irradiance(prepared, p, CUBE_NORMALS, 8192, 4).sum(axis=1)
+            got = interpolate(g, np.repeat(p[None], n, 0), CUBE_NORMALS, np.repeat(p[None], n, 0),
+                              prepared.bvh.arrays).sum(axis=1)
+            point_err.append(_errors(got, want))
+        pe, qe = np.concatenate(probe_err), np.concatenate(point_err)
+        rows.append([name, f"{cell:.4g}", len(probe_err), f"{100 * np.median(pe):.1f}%",
+                     f"{100 * np.mean(pe < 0.03):.0f}%", f"{100 * pe.max():.1f}%", len(point_err), f"{100 * np.median(qe):.1f}%",
+                     f"{100 * np.mean(qe < 0.05):.0f}%", f"{100 * qe.max():.1f}%"])
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", default="cornell_box,walkthrough")
     ap.add_argument("--presets", default="preview,default,high")
     ap.add_argument("--window", action="store_true")
+    ap.add_argument("--accuracy", action="store_true")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     scenes = args.scenes.split(",")
     emit(args, "irradiance probes per scene and preset (probe stage alone, best of 2)",
          probe_rows(scenes, args.presets.split(",")),
          ["scene", "preset", "probes", "grid", "spacing", "valid", "rays", "solve s", "probes s", "MiB in file"])
+    if args.accuracy:
+        emit(args, f"probes against the path tracer at default, 14 normals each ({PICKED} probes and {PICKED} random "
+                   "points per scene that see no surface nearer than a voxel cell)",
+             accuracy_rows(scenes), ["scene", "cell", "probes", "median error", "within 3%", "max", "points",
+                                     "median error", "within 5%", "max"])
     if args.window:
         emit(args, f"voxview window at 1280x720 under Xvfb (llvmpipe): {FRAMES_LONG} frames, and the steady rate "
                    f"(frames {FRAMES_SHORT} to {FRAMES_LONG}: after the first drop's BVH and shader)",

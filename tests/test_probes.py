@@ -14,6 +14,7 @@ from baker.errors import BakeFileError, ConfigError
 from baker.probes import grid_for, interpolate
 from baker.probes.gather import MAX_PROBES, SH_BAND, ray_set, sh_basis_np
 from baker.probes.sample import irradiance_map_at, probe_irradiance_sh
+from baker.render.irradiance import path_traced_irradiance
 from scenes.generate import closed_box, furnace_box, thin_wall, two_rooms
 from tests.conftest import cli
 from tests.hostile import resign_bake, split_glb
@@ -187,27 +188,6 @@ def test_no_probe_light_goes_through_a_one_sided_wall(rooms_bake):
     assert (interpolate(g, c + r * nrm, nrm, np.repeat(c[None], len(nrm), 0), bvh).sum(axis=1) > 0).all()
 
 
-def _path_traced_irradiance(prepared, point, normals, directions=8192, spp=2):
-    """(n, 3) E at point for each normal: pi times the mean path-traced
-    radiance over `directions` cosine-distributed directions (a fixed
-    spiral: a small lamp needs many distinct directions, not many paths)."""
-    from baker.kernels.sampling import spiral_hemisphere
-    from baker.render.pathtrace import radiance_batch
-    local = spiral_hemisphere(directions)
-    o, d = [], []
-    for n in normals:
-        a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
-        t = np.cross(a, n)
-        t /= np.linalg.norm(t)
-        b = np.cross(n, t)
-        d.append(local[:, :1] * t + local[:, 1:2] * b + local[:, 2:3] * n)
-        o.append(np.repeat(np.asarray(point, float)[None], len(local), 0))
-    s = prepared.surfaces
-    radiance = radiance_batch(prepared.bvh.arrays, s.arrays, 1e-7 * s.scale, np.uint64(5), spp, np.concatenate(o),
-                              np.concatenate(d))
-    return np.pi * radiance.reshape(len(normals), -1, 3).mean(axis=1)
-
-
 @pytest.mark.slow
 def test_cornell_probes_match_the_path_tracer(cornell):
     """Probes that see no surface nearer than four voxel cells (and do not
@@ -231,7 +211,7 @@ def test_cornell_probes_match_the_path_tracer(cornell):
     n = len(CUBE_NORMALS)
     errors = []
     for i in picked:
-        want = _path_traced_irradiance(prepared, pos[i], CUBE_NORMALS).sum(axis=1)
+        want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS).sum(axis=1)
         got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
         errors.append(np.abs(got - want) / (want + 0.02 * want.max()))
         near = interpolate(g, np.repeat(pos[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
@@ -319,7 +299,7 @@ def test_snapshot_spheres_in_the_cornell_box_match_the_path_tracer(cornell, gl, 
         hit = -t - np.sqrt(t * t - (oc @ oc - r * r))
         pts = c[0] + hit[:, None] * d
         nrm = (pts - np.asarray(centre)) / r
-        want = np.array([_path_traced_irradiance(prepared, p, n[None], 4096, 1)[0] for p, n in zip(pts, nrm)])
+        want = np.array([path_traced_irradiance(prepared, p, n[None], 4096, 1)[0] for p, n in zip(pts, nrm)])
         want = 0.8 * want / np.pi
         ratio = img[ys, xs].mean() / want.mean()
         assert abs(ratio - 1) < 0.05, (centre, ratio)
@@ -571,3 +551,27 @@ def test_the_probe_view_from_the_command_line(cornell, tmp_path):
         code, _, err = cli("snapshot", bake, "-o", out, "--probes", *extra, main=main)
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
         assert not out.exists()
+
+
+def test_the_path_traced_reference_counts_the_sun_at_the_point(make_scene):
+    """path_traced_irradiance (the probes' reference) over a black floor
+    under a sun of E = 3 at 60 degrees from the zenith and a 0.5 x 0.5
+    blocker: above the floor in the open, E(n) = 3 cos(n, -sun) for each
+    normal (no sampled direction meets a delta); in the blocker's shadow
+    0; nothing else lights the point."""
+    from scenes.generate import GltfBuilder, quad
+    from baker.render.irradiance import path_traced_irradiance
+    from baker.scene.prepared import prepare
+    b = GltfBuilder()
+    black = b.material("black", (0.0, 0.0, 0.0))
+    b.mesh("floor", *quad((-4, 0, -4), (4, 0, -4), (4, 0, 4), (-4, 0, 4), facing=(0, 1, 0)), black)
+    b.mesh("blocker", *quad((-0.25, 1, -0.25), (0.25, 1, -0.25), (0.25, 1, 0.25), (-0.25, 1, 0.25),
+                            facing=(0, -1, 0)), b.material("blocker", (0.0, 0.0, 0.0), double_sided=True))
+    sun = np.array([np.sin(np.pi / 3), -np.cos(np.pi / 3), 0.0])
+    b.light("sun", "directional", intensity=3.0, direction=tuple(sun))
+    b.camera("c", (0, 2, 3), (0, -0.5, -1))
+    prepared = prepare(make_scene(b, "sun_reference"))
+    e = path_traced_irradiance(prepared, (2.0, 0.5, 0.0), CUBE_NORMALS, 256, 1)
+    assert np.allclose(e, 3.0 * np.maximum(CUBE_NORMALS @ -sun, 0)[:, None], atol=1e-9)
+    shade = (np.tan(np.pi / 3) * 0.5, 0.5, 0.0)   # 0.5 under the blocker's centre along the sun
+    assert (path_traced_irradiance(prepared, shade, CUBE_NORMALS, 256, 1) == 0).all()
