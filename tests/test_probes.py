@@ -223,6 +223,42 @@ def test_cornell_probes_match_the_path_tracer(cornell):
         (np.median(errors), np.mean(errors < 0.05), errors.max())
 
 
+@pytest.mark.slow
+def test_walkthrough_probes_match_the_path_tracer():
+    """The walkthrough at default (three rooms, four lamps hung under the
+    ceiling, a sun through a window): eight probes that see no surface
+    nearer than four voxel cells, 14 normals each, against the path
+    tracer's irradiance with the sun counted at the point. A regression
+    guard at today's figures (bench/results/probes.md): the issue's 3% is
+    met for most normals; probes under a lamp read its ceiling's bounced
+    light up to 13% bright (the voxel solution's error there)."""
+    from baker.presets import bake_config
+    from baker.probes import bake_probes
+    from baker.scene import load_scene
+    from baker.scene.prepared import prepare
+    from baker.solve import solve
+    scene = load_scene("walkthrough")
+    prepared = prepare(scene)
+    cfg = bake_config("default")
+    solution = solve(prepared, cfg.solver)
+    lo, hi = scene.bounds()
+    g = bake_probes(prepared, solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget), cfg.probes.copies,
+                    cfg.solver.seed)
+    cell = float(solution.voxels.cell_size)
+    pos = g.positions()
+    clear = np.nonzero(g.valid & (g.depth[..., 0].reshape(g.count, -1).min(axis=1) > 4 * cell))[0]
+    picked = np.random.default_rng(2).choice(clear, 8, replace=False)
+    n = len(CUBE_NORMALS)
+    errors = []
+    for i in picked:
+        want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 8192, 4).sum(axis=1)
+        got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
+        errors.append(np.abs(got - want) / (want + 0.02 * want.max()))
+    errors = np.concatenate(errors)
+    assert np.median(errors) < 0.03 and np.mean(errors < 0.05) > 0.8 and errors.max() < 0.2, \
+        (np.median(errors), np.mean(errors < 0.05), errors.max())
+
+
 @pytest.fixture(scope="module")
 def gl():
     from viewer.context import headless_context
