@@ -18,8 +18,12 @@ in vec3 v_normal;
 out vec4 f_color;
 
 const float PI = 3.14159265358979;
+// the maps' frame (baker/probes/gather.py MAP_FRAME, by columns): a turn that keeps the scene's axes off the map's corners
+const mat3 MAP_FRAME = mat3(vec3(0.3826834323650898, 0.9238795325112867, 0.0),
+                            vec3(-0.9238795325112867, 0.3826834323650898, 0.0), vec3(0.0, 0.0, 1.0));
 
 vec2 oct_uv(vec3 d) {
+    d = MAP_FRAME * d;
     d /= abs(d.x) + abs(d.y) + abs(d.z);
     vec2 p = d.xy;
     if (d.z < 0.0) p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);

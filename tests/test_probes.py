@@ -12,7 +12,7 @@ from baker.bake import bake_config, bake_scene, read_bake, write_bake
 from baker.config import ProbeConfig
 from baker.errors import BakeFileError, ConfigError
 from baker.probes import grid_for, interpolate
-from baker.probes.gather import MAX_PROBES, SH_BAND, ray_set, sh_basis_np
+from baker.probes.gather import MAP_FRAME, MAX_PROBES, SH_BAND, ray_set, sh_basis_np
 from baker.probes.sample import irradiance_map_at, probe_irradiance_sh
 from baker.render.irradiance import path_traced_irradiance
 from scenes.generate import closed_box, furnace_box, thin_wall, two_rooms
@@ -218,9 +218,47 @@ def test_cornell_probes_match_the_path_tracer(cornell):
         assert np.allclose(near, got, rtol=1e-6)
     errors = np.concatenate(errors)
     # at this test's coarse solve (24 cells across) the bounced light's own error reaches 10-15% in a few directions
-    # (the per-pixel accuracy issue); the probes add no more than that
-    assert np.median(errors) < 0.03 and np.mean(errors < 0.05) > 0.75 and errors.max() < 0.16, \
+    # (the per-pixel accuracy issue); the map's bilinear read near its kinks adds up to 30% in one or two
+    # (test_the_map_reads_the_probe_s_own_irradiance_between_its_texels)
+    assert np.median(errors) < 0.03 and np.mean(errors < 0.05) > 0.85 and errors.max() < 0.4, \
         (np.median(errors), np.mean(errors < 0.05), errors.max())
+
+
+def test_the_map_reads_the_probe_s_own_irradiance_between_its_texels(cornell, monkeypatch):
+    """The irradiance map read at the 14 cube normals against the same
+    probe's irradiance gathered at those normals themselves (the same rays
+    and lamp samples, so no noise between them): the error is the map's
+    bilinear read alone. In the turned frame (MAP_FRAME) the scene's axes
+    lie off the octahedron's vertices: at least 88% of the readings within
+    3% (96% as shipped; at 17 x 17 texels in the scene's own frame, the
+    axes on its vertices: 80%), the axes' median under 2%."""
+    import baker.probes.gather as gather
+    from baker.probes.gather import IRR
+    cfg = small(probe_spacing=0.1)
+    result = bake_scene(cornell, cfg)
+    from baker.scene.prepared import prepare
+    prepared = prepare(cornell)
+    g = result.bake.probes
+    lo, hi = cornell.bounds()
+    plain = gather.texel_directions
+
+    def at_the_normals(size, sub=1):
+        d = plain(size, sub)
+        if size == IRR and sub == 1:
+            d = d.copy()
+            d[:len(CUBE_NORMALS)] = CUBE_NORMALS
+        return d
+    monkeypatch.setattr(gather, "texel_directions", at_the_normals)
+    exact_grid = gather.bake_probes(prepared, result.solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget),
+                                    cfg.probes.copies, cfg.solver.seed)
+    n = len(CUBE_NORMALS)
+    exact = exact_grid.irradiance[:, 0, :n].sum(axis=2)
+    read = np.stack([irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
+                     for i in range(g.count)])
+    ok = g.valid & (exact.max(axis=1) > 0)
+    assert ok.sum() >= 20
+    err = np.abs(read - exact)[ok] / (exact[ok] + 0.02 * exact[ok].max(axis=1, keepdims=True))
+    assert np.mean(err < 0.03) >= 0.88 and np.median(err[:, :6]) < 0.02, (np.mean(err < 0.03), np.median(err[:, :6]))
 
 
 @pytest.mark.slow
@@ -230,8 +268,8 @@ def test_walkthrough_probes_match_the_path_tracer():
     nearer than four voxel cells, 14 normals each, against the path
     tracer's irradiance with the sun counted at the point. A regression
     guard at today's figures (bench/results/probes.md): the issue's 3% is
-    met for most normals; probes under a lamp read its ceiling's bounced
-    light up to 13% bright (the voxel solution's error there)."""
+    met for most normals; probes under a lamp read up to 13% bright for
+    normals facing the ceiling (not the lamp's sampling)."""
     from baker.presets import bake_config
     from baker.probes import bake_probes
     from baker.scene import load_scene
@@ -459,8 +497,9 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     normals (sphere_map), each texel the per-point interpolation at the
     sphere's point with that normal. At the map's texel normals the map is
     interpolate (anchored at the centre) exactly; every pixel of the
-    snapshot is interpolate at the pixel's point and normal within 1% of
-    the sphere's brightest (the map's bilinear read between texels)."""
+    snapshot is interpolate at the pixel's point and normal within 1.5% of
+    the sphere's brightest (the map's bilinear read between texels: 1.03%
+    at most here, beside the lamp)."""
     from baker.probes.sample import sphere_map
     from baker.render import camera_array
     from baker.scene import camera_for
@@ -481,6 +520,7 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     low = n[:, 2] < 0
     n[low, :2] = (1 - np.abs(n[low][:, [1, 0]])) * np.where(n[low, :2] >= 0, 1.0, -1.0)
     n /= np.linalg.norm(n, axis=1)[:, None]
+    n = n @ MAP_FRAME   # the maps' frame to the scene's
     anchors = np.repeat(centre[None], len(n), 0)
     want = interpolate(g, centre + r * n, n, anchors, bvh)
     assert np.allclose(m.reshape(-1, 3), want, rtol=1e-4, atol=1e-6)
@@ -498,7 +538,7 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
     want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh)
     assert len(ys) > 200
-    assert np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()
+    assert np.abs(img[ys, xs] - want).max() <= 0.015 * want.max()
 
 
 def test_the_probe_view_draws_each_probe_lit_by_its_sh(cornell, furnace_bake, gl, tmp_path):

@@ -132,7 +132,7 @@ def write_bake(path, bake: Bake, inputs=()):
     return path
 
 
-PROBES_VERSION = 1
+PROBES_VERSION = 2   # 2: the octahedral maps in a turned frame (probes/gather.py MAP_FRAME)
 SH_ORDER = ("Y00", "Y1-1", "Y10", "Y11", "Y2-2", "Y2-1", "Y20", "Y21", "Y22")
 
 
@@ -142,12 +142,14 @@ def _probe_entry(b, pr) -> dict:
     sh float32 [probe][9][rgb], the incident radiance's real spherical
     harmonics; irradiance float16 [probe][row][column][rgb] of an
     octahedral map of normals, times `scale` (a power of two); depth float32 [probe][row][column][mean,
-    mean square] of an octahedral distance map; valid uint8 [probe]."""
-    from ..probes.gather import half_scale
+    mean square] of an octahedral distance map; valid uint8 [probe]. Both maps encode the direction
+    `frame` @ d (row-major 3 x 3) of a scene direction d."""
+    from ..probes.gather import MAP_FRAME, half_scale
     k = half_scale(pr.irradiance)
     return {"version": PROBES_VERSION,
             "origin": [float(v) for v in pr.origin], "spacing": float(pr.spacing),
             "dims": [int(v) for v in pr.dims], "rays": int(pr.rays),
+            "frame": [[float(v) for v in row] for row in MAP_FRAME],
             "sh": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.sh, "<f4").tobytes()),
                    "coefficients": list(SH_ORDER), "unit": "W m^-2 sr^-1"},
             "irradiance": {"bufferView": b.buffer_view(np.ascontiguousarray(pr.irradiance * k, "<f2").tobytes()),
@@ -163,7 +165,7 @@ def _read_probes(blob, doc, entry):
     anything is made of them); None where the bake has none."""
     if entry is None:
         return None
-    from ..probes.gather import DEPTH, IRR, MAX_PROBES, SH, ProbeGrid
+    from ..probes.gather import DEPTH, IRR, MAP_FRAME, MAX_PROBES, SH, ProbeGrid
     if entry.get("version") != PROBES_VERSION:
         raise ValueError(f"probe block version {entry.get('version')!r}, this voxgi reads {PROBES_VERSION}")
     dims = entry["dims"]
@@ -183,6 +185,8 @@ def _read_probes(blob, doc, entry):
             raise ValueError(f"probe {key} map size or mapping")
     if list(entry["sh"].get("coefficients", [])) != list(SH_ORDER):
         raise ValueError("probe coefficients")
+    if entry.get("frame") != [[float(v) for v in row] for row in MAP_FRAME]:
+        raise ValueError("probe map frame (this voxgi reads its own turned frame only)")
     out = []
     scale = float(entry["irradiance"].get("scale", 0))
     if not (np.isfinite(scale) and scale > 0 and np.log2(scale) == np.round(np.log2(scale))):

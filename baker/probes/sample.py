@@ -26,6 +26,7 @@ from numba import njit
 
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import transmittance
+from .gather import from_map, to_map
 
 BIAS = 0.05      # spacings along the normal, for the visibility test
 CRUSH = 0.05     # visibility weights below this count for nothing
@@ -57,7 +58,10 @@ def _wrap(row, col, size):
 
 
 def oct_uv(d):
-    """Octahedral (u, v) in [0, 1]^2 of unit directions d (n, 3)."""
+    """Octahedral (u, v) in [0, 1]^2 of unit scene directions d (n, 3), in
+    the maps' frame (gather.MAP_FRAME)."""
+    from .gather import MAP_FRAME
+    d = np.asarray(d, np.float64) @ MAP_FRAME.T
     s = np.abs(d).sum(axis=1)
     px, py = d[:, 0] / s, d[:, 1] / s
     neg = d[:, 2] < 0
@@ -211,6 +215,7 @@ def sphere_map(grid, center, radius, seen, size) -> np.ndarray:
 @njit(cache=True, inline="always")
 def _oct_col_row(x, y, z, size):
     """Octahedral (u, v) * size of unit direction (x, y, z) (oct_uv)."""
+    x, y, z = to_map(x, y, z)
     s = abs(x) + abs(y) + abs(z)
     px, py = x / s, y / s
     if z < 0.0:
@@ -250,7 +255,7 @@ def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
             if nz < 0.0:
                 nx, ny = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
             ln = np.sqrt(nx * nx + ny * ny + nz * nz)
-            n = (nx / ln, ny / ln, nz / ln)
+            n = from_map(nx / ln, ny / ln, nz / ln)
             x = (center[0] + radius * n[0], center[1] + radius * n[1], center[2] + radius * n[2])
             for k in range(3):
                 g = (x[k] - origin[k]) / spacing

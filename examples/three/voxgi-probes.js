@@ -1,5 +1,5 @@
 // The irradiance probes of a voxgi bake in three.js: a GLTFLoader plugin that reads the probe grid from
-// the bake's root VOXGI_lightmap extension (block "probes", version 1: see the README's "Output: the bake
+// the bake's root VOXGI_lightmap extension (block "probes", version 2: see the README's "Output: the bake
 // file"), and a grid whose shAt(position) gives the order-2 spherical harmonics of the light at any
 // point, trilinear between the valid probes around it, ready for THREE.LightProbe. Usage:
 //
@@ -24,7 +24,7 @@ export class VoxgiProbesPlugin {
     const block = ext && ext.probes;
     gltf.userData.voxgiProbes = null;
     if (!block) return;
-    if (block.version !== 1) throw new Error(`voxgi probe block version ${block.version}: this reader reads 1`);
+    if (block.version !== 2) throw new Error(`voxgi probe block version ${block.version}: this reader reads 2`);
     const view = async (index) => new Uint8Array(await this.parser.getDependency("bufferView", index));
     const sh = await view(block.sh.bufferView);
     const valid = await view(block.valid.bufferView);
