@@ -267,9 +267,8 @@ def test_walkthrough_probes_match_the_path_tracer():
     ceiling, a sun through a window): eight probes that see no surface
     nearer than four voxel cells, 14 normals each, against the path
     tracer's irradiance with the sun counted at the point. A regression
-    guard at today's figures (bench/results/probes.md): the issue's 3% is
-    met for most normals; probes under a lamp read up to 13% bright for
-    normals facing the ceiling (not the lamp's sampling)."""
+    guard at today's figures (median 1.6%, 97% within 5%, at most 8.6%):
+    the issue's 3% is met for most normals, not all."""
     from baker.presets import bake_config
     from baker.probes import bake_probes
     from baker.scene import load_scene
@@ -293,7 +292,7 @@ def test_walkthrough_probes_match_the_path_tracer():
         got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
         errors.append(np.abs(got - want) / (want + 0.02 * want.max()))
     errors = np.concatenate(errors)
-    assert np.median(errors) < 0.03 and np.mean(errors < 0.05) > 0.8 and errors.max() < 0.2, \
+    assert np.median(errors) < 0.025 and np.mean(errors < 0.05) > 0.9 and errors.max() < 0.12, \
         (np.median(errors), np.mean(errors < 0.05), errors.max())
 
 
