@@ -149,6 +149,9 @@ def test_the_probe_block_round_trips_and_damage_is_refused(furnace_bake, tmp_pat
     assert "probe" in edited(lambda d: probes(d).__setitem__("dims", [1 << 20, 1 << 20, 1 << 20]))
     assert "probe" in edited(lambda d: probes(d).__setitem__("spacing", -1.0))
     assert "probe" in edited(lambda d: probes(d).__setitem__("version", 99))
+    assert "probe" in edited(lambda d: probes(d).__setitem__("frame", np.eye(3).tolist()))   # another layout
+    assert "probe" in edited(lambda d: probes(d).pop("frame"))
+    assert "probe" in edited(lambda d: probes(d).__setitem__("frame", [[float("nan")] * 3] * 3))
     assert "probe" in edited(lambda d: probes(d)["sh"].__setitem__("bufferView", 10 ** 6))
     doc, _ = split_glb(data)
     assert json.dumps(probes(doc)["dims"]) == "[5, 5, 5]"
@@ -319,6 +322,21 @@ def _sphere_pixels(cam, w, h, center, radius):
     return hit[:-1, :-1] & hit[1:, :-1] & hit[:-1, 1:] & hit[1:, 1:]
 
 
+def _sphere_normals(cam, w, h, center, radius):
+    """(ys, xs, normals): the pixels of _sphere_pixels and the sphere's
+    normal where each pixel's central ray first meets it."""
+    from baker.render import camera_array
+    center = np.asarray(center, np.float64)
+    ys, xs = np.nonzero(_sphere_pixels(cam, w, h, center, radius))
+    c = camera_array(cam, w, h)
+    a, b = 2.0 * (xs + 0.5) / w - 1.0, 1.0 - 2.0 * (ys + 0.5) / h
+    d = c[1] + a[:, None] * c[2] + b[:, None] * c[3]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    oc = c[0] - center
+    t = d @ oc
+    return ys, xs, (c[0] + (-t - np.sqrt(t * t - (oc @ oc - radius * radius)))[:, None] * d - center) / radius
+
+
 def test_a_snapshot_sphere_in_a_furnace_reads_albedo_times_radiance(furnace_bake, gl, tmp_path):
     """voxview's sphere (the shader, not the Python reference) in the
     furnace: every pixel of it reads albedo x radiance, A x 2 / pi."""
@@ -460,7 +478,6 @@ def test_a_small_sphere_is_shaded_by_its_blended_map(cornell, gl, tmp_path):
     Python interpolation at the centre with that pixel's normal (within
     1%), and the map read at n is interpolate(centre, n) exactly."""
     from baker.probes.sample import object_map
-    from baker.render import camera_array
     from baker.scene import camera_for
     from baker.scene.prepared import prepare
     from viewer.objects import Sphere
@@ -479,14 +496,7 @@ def test_a_small_sphere_is_shaded_by_its_blended_map(cornell, gl, tmp_path):
     w = h = 48
     cam = camera_for(bake.scene, None)
     img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
-    ys, xs = np.nonzero(_sphere_pixels(cam, w, h, centre, r))
-    c = camera_array(cam, w, h)
-    a, b = 2.0 * (xs + 0.5) / w - 1.0, 1.0 - 2.0 * (ys + 0.5) / h
-    d = c[1] + a[:, None] * c[2] + b[:, None] * c[3]
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    oc = c[0] - centre
-    t = d @ oc
-    nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
+    ys, xs, nrm = _sphere_normals(cam, w, h, centre, r)
     want = 0.8 / np.pi * irradiance_map_at(np.repeat(m[None], len(nrm), 0), nrm)
     assert len(ys) > 30 and np.abs(img[ys, xs] - want).max() <= 0.01 * want.max()
 
@@ -500,7 +510,6 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     the sphere's brightest (the map's bilinear read between texels: 1.03%
     at most here, beside the lamp)."""
     from baker.probes.sample import sphere_map
-    from baker.render import camera_array
     from baker.scene import camera_for
     from baker.scene.prepared import prepare
     from viewer.objects import Sphere, probe_seen
@@ -527,14 +536,7 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     w = h = 96
     cam = camera_for(bake.scene, None)
     img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
-    ys, xs = np.nonzero(_sphere_pixels(cam, w, h, centre, r))
-    c = camera_array(cam, w, h)
-    a, b = 2.0 * (xs + 0.5) / w - 1.0, 1.0 - 2.0 * (ys + 0.5) / h
-    d = c[1] + a[:, None] * c[2] + b[:, None] * c[3]
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    oc = c[0] - centre
-    t = d @ oc
-    nrm = (c[0] + (-t - np.sqrt(t * t - (oc @ oc - r * r)))[:, None] * d - centre) / r
+    ys, xs, nrm = _sphere_normals(cam, w, h, centre, r)
     want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh)
     assert len(ys) > 200
     assert np.abs(img[ys, xs] - want).max() <= 0.015 * want.max()
@@ -621,7 +623,8 @@ def test_the_probe_view_from_the_command_line(cornell, tmp_path):
         assert code == 0, err
         shots[name] = np.asarray(Image.open(out).convert("RGB"), float)
     assert (np.abs(shots["probes"] - shots["plain"]).sum(axis=2) > 10).mean() > 0.02
-    for bake, extra, message in ((without, [], "no irradiance probes"), (with_probes, ["--mode", "checker"], "lightmap")):
+    for bake, extra, message in ((without, [], "no irradiance probes"),
+                                 (with_probes, ["--mode", "checker"], "lightmap")):
         out = tmp_path / "x.png"
         code, _, err = cli("snapshot", bake, "-o", out, "--probes", *extra, main=main)
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
