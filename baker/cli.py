@@ -31,7 +31,8 @@ def _load(args):
     from .scene import Sky, load_scene, sun as make_sun
     lights = [make_sun(*args.sun)] if getattr(args, "sun", None) is not None else []
     sky = Sky(args.sky, args.sky_mode == "hemisphere") if getattr(args, "sky", None) is not None else None
-    return load_scene(args.scene, one_sided=args.one_sided, lights=lights, sky=sky, limits=load_limits(args))
+    return load_scene(args.scene, one_sided=args.one_sided, lights=lights, sky=sky, limits=load_limits(args),
+                      dynamic=tuple(getattr(args, "dynamic", None) or ()))
 
 
 def _inputs(args) -> list:
@@ -159,6 +160,8 @@ def cmd_bake(args):
     from .startup import checkpoint
     from .stats import Stats
     _check_common(args, (".glb",))
+    if args.dynamic and args.no_probes:
+        raise VoxgiError("--dynamic meshes are lit by the probes: drop --no-probes")
     config = _configs(args, "bake", lambda: bake_config(
         args.preset, args.uv, args.texel_density, args.texels, args.epsilon, args.direct_vpls,
         preview_vpls=args.preview_vpls, texel_samples=args.texel_samples, texel_interpolate=args.texel_interpolate,

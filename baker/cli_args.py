@@ -306,6 +306,10 @@ def _bake_parser(sub):
                    help="scene units between the irradiance probes that light moving objects (default: about "
                         f"{per_preset(lambda p: p.probes.budget)} probes over the scene's bounds)")
     g.add_argument("--no-probes", action="store_true", help="bake no irradiance probes")
+    p.add_argument("--dynamic", action="append", default=[], metavar="NODE",
+                   help="a glTF node (by name; again for more) whose meshes, with its children's, move at run time: "
+                        "they are left out of the bake (no lightmap, no shadow, no bounced light) and written as "
+                        "plain meshes that voxview lights from the probes and moves (needs the probes)")
     run_args(p)
     p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
     cluster_args(p)

@@ -64,13 +64,18 @@ def textured_obj(folder):
 @pytest.fixture(scope="module")
 def bakes(tmp_path_factory):
     """A bake of each kind of scene: the Cornell box, two-sided walls, a
-    room with a dark half, a textured OBJ, the walkthrough's first rooms."""
+    room with a dark half, a textured OBJ, a room with a dynamic mesh."""
     out = tmp_path_factory.mktemp("web")
     scenes = {"cornell": load_scene("cornell_box")}
     thin_wall().save(out / "thin.glb")
     two_rooms().save(out / "rooms.glb")
     scenes["thin_wall"] = load_scene(out / "thin.glb")
     scenes["two_rooms"] = load_scene(out / "rooms.glb")
+    from tests.test_dynamic import add_ball
+    b = two_rooms()
+    add_ball(b, centre=(0.5, 0.3, 0.5), radius=0.1, cap=True)
+    b.save(out / "dynamic.glb")
+    scenes["dynamic"] = load_scene(out / "dynamic.glb", dynamic=("ball",))
     floor = load_scene(textured_obj(out))
     scenes["textured"] = replace(floor, cameras=(make_camera("above", (0, 1.6, -2.2), (0, -0.6, 1), (0, 1, 0),
                                                              np.radians(50)),))

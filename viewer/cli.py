@@ -21,7 +21,8 @@ EPILOG = """examples:
 
 Keys in the window: W A S D (Q E down/up) move, Shift faster, drag to look, wheel zooms, 1-9 cameras,
 +/- exposure (0 automatic), F1-F5 or M views, P the progressive preview, B bicubic, O a sphere lit by the
-probes (arrow keys, Page Up/Down move it), G the probes, F12 screenshot, Esc.
+probes, N the next object to move (the sphere, the bake's dynamic meshes; arrow keys, Page Up/Down move
+it), G the probes, F12 screenshot, Esc.
 """
 COMMANDS = ("walk", "snapshot", "glinfo")
 
@@ -60,8 +61,9 @@ def cmd_snapshot(args):
     check_output_path(args.output, (".png", ".exr"), inputs=[args.bake])
     if args.width * args.height > 64_000_000:
         raise VoxgiError(f"image size {args.width}x{args.height} out of range")
-    objects = _objects(args)
+    objects = _objects(args)   # the flags checked before the bake is read
     bake = _read(args.bake)
+    objects = _objects(args, bake)
     if objects and bake.probes is None:
         raise VoxgiError("the bake holds no irradiance probes for --object: bake it again without --no-probes",
                          args.bake)
@@ -86,19 +88,38 @@ def _check_probes(args, bake):
         raise VoxgiError("--probes are drawn in the lightmap view (--mode lightmap)")
 
 
-def _objects(args):
-    """The --object spheres asked for, checked (one line, before any work)."""
-    from .objects import Sphere
+def _objects(args, bake=None):
+    """The --object asked for, checked (one line, before any work): a
+    sphere, or one of the bake's dynamic meshes by name (resolved once
+    `bake` is read: () before)."""
+    from .objects import Sphere, placed_at
     if not args.object:
         if args.at is not None or args.radius is not None or args.object_albedo is not None:
-            raise VoxgiError("--at, --radius and --object-albedo place an --object sphere: add --object sphere")
+            raise VoxgiError("--at, --radius and --object-albedo place an --object: add --object sphere (or a "
+                             "dynamic mesh's name)")
         return ()
-    if args.at is None or args.radius is None:
-        raise VoxgiError("--object sphere needs --at X,Y,Z and --radius R")
     if args.mode != "lightmap":
         raise VoxgiError("--object is drawn in the lightmap view (--mode lightmap)")
-    albedo = args.object_albedo if args.object_albedo is not None else 0.8
-    return (Sphere(tuple(args.at), float(args.radius), (albedo,) * 3),)
+    if args.object == "sphere":
+        if args.at is None or args.radius is None:
+            raise VoxgiError("--object sphere needs --at X,Y,Z and --radius R")
+        albedo = args.object_albedo if args.object_albedo is not None else 0.8
+        return (Sphere(tuple(args.at), float(args.radius), (albedo,) * 3),)
+    if args.at is None:
+        raise VoxgiError(f"--object {args.object} needs --at X,Y,Z (where the centre of its bounds goes)")
+    if args.radius is not None or args.object_albedo is not None:
+        raise VoxgiError("--radius and --object-albedo are the sphere's: a dynamic mesh keeps its own size and "
+                         "materials")
+    if bake is None:
+        return ()
+    names = [d.name for d in bake.scene.dynamic]
+    if args.object not in names:
+        held = f"its dynamic meshes: {', '.join(repr(n) for n in names)}" if names else \
+            "it has none: bake with --dynamic NODE"
+        raise VoxgiError(f"--object {args.object!r}: neither 'sphere' nor a dynamic mesh of the bake ({held})",
+                         args.bake)
+    i = names.index(args.object)
+    return (placed_at(bake.scene.dynamic[i], i, args.at),)
 
 
 def _vector(text):
@@ -170,9 +191,11 @@ def build_parser():
     p.add_argument("--samples", type=integer(1, 16), default=4, help="samples per pixel along each axis (default 4)")
     p.add_argument("--bicubic", action="store_true", help="bicubic lightmap filtering")
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
-    p.add_argument("--object", choices=("sphere",),
-                   help="draw a moving object lit by the bake's irradiance probes (it does not shadow the room)")
-    p.add_argument("--at", type=_vector, metavar="X,Y,Z", help="the object's centre")
+    p.add_argument("--object", metavar="sphere|NAME",
+                   help="draw a moving object lit by the bake's irradiance probes (it does not shadow the room): "
+                        "a diffuse sphere, or the dynamic mesh NAME (baked with --dynamic NAME; without --object "
+                        "the dynamic meshes stand where the file has them)")
+    p.add_argument("--at", type=_vector, metavar="X,Y,Z", help="the object's centre (a mesh: its bounds' centre)")
     p.add_argument("--radius", type=number(0, 1e9, lo_open=True), metavar="R", help="the sphere's radius")
     p.add_argument("--object-albedo", type=number(0, 1), metavar="A", help="the object's albedo (default 0.8)")
     p.add_argument("--probes", action="store_true",

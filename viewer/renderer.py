@@ -30,6 +30,21 @@ class Draw:
     page: int
 
 
+def material_texture(ctx, m):
+    """A material's albedo texture on the GPU: RGBA, the albedo and the
+    mask's alpha (1 where the material is not masked); a mask is tested at
+    the nearest texel, as every ray of the bake tested it."""
+    import moderngl
+    t = np.ones(m.texture.shape[:2] + (4,), np.float32)
+    t[..., :3] = m.texture
+    if m.masked and m.opacity is not None and m.opacity.shape == m.texture.shape[:2]:
+        t[..., 3] = m.opacity
+    tex = ctx.texture((t.shape[1], t.shape[0]), 4, t.tobytes(), dtype="f4")
+    f = moderngl.NEAREST if m.masked else moderngl.LINEAR
+    tex.filter = (f, f)
+    return tex
+
+
 def draw_groups(bake) -> list:
     """Runs of consecutive triangles with one (material, page)."""
     mat, page = bake.scene.material_ids, bake.page
@@ -63,16 +78,7 @@ class Renderer:
         self.textures = {}
         for i, m in enumerate(scene.materials):
             if m.texture is not None and scene.uvs is not None:
-                # RGBA: albedo and the mask's alpha (1 where the material is not masked)
-                t = np.ones(m.texture.shape[:2] + (4,), np.float32)
-                t[..., :3] = m.texture
-                if m.masked and m.opacity is not None and m.opacity.shape == m.texture.shape[:2]:
-                    t[..., 3] = m.opacity
-                tex = ctx.texture((t.shape[1], t.shape[0]), 4, t.tobytes(), dtype="f4")
-                # a mask is tested at the nearest texel, as every ray of the bake tested it
-                f = moderngl.NEAREST if m.masked else moderngl.LINEAR
-                tex.filter = (f, f)
-                self.textures[i] = tex
+                self.textures[i] = material_texture(ctx, m)
         self.emit_textures = {}
         for i, m in enumerate(scene.materials):
             if m.emission_texture is not None and scene.uvs is not None and float(np.max(m.emission)) > 0:
@@ -83,6 +89,7 @@ class Renderer:
         self.draws = draw_groups(bake)
         self.probe_objects = None   # objects.ProbeObjects, made when an object is first drawn
         self.probe_view = None      # objects.ProbeGridView, made when the probes are first shown
+        self.dynamic = None         # objects.DynamicMeshes, made when the bake's dynamic meshes are first drawn
         self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
@@ -132,7 +139,10 @@ class Renderer:
         """Draws the bake seen by `camera` (a scene Camera or FlyCamera)
         into the bound framebuffer (viewport width x height), with the
         moving `objects` (objects.Sphere) lit by its probes, and with
-        `probes` the probes themselves (objects.ProbeGridView)."""
+        `probes` the probes themselves (objects.ProbeGridView). In the
+        lightmap view the bake's dynamic meshes are drawn lit by its probes
+        too, where the file has them unless an objects.Placed in `objects`
+        moves one."""
         import moderngl
         ctx = self.ctx
         near, far = self.clip_range(camera)
@@ -179,11 +189,22 @@ class Renderer:
         if glass:
             ctx.disable(moderngl.BLEND)
             ctx.fbo.depth_mask = True
-        if objects:   # (after the glass: an object behind a pane is not tinted by it)
+        from .objects import Placed
+        spheres = [o for o in objects if not isinstance(o, Placed)]
+        if spheres:   # (after the glass: an object behind a pane is not tinted by it)
             if self.probe_objects is None:
                 from .objects import ProbeObjects
                 self.probe_objects = ProbeObjects(ctx, self.bake)
-            self.probe_objects.draw(vp, objects, tonemap, exposure)
+            self.probe_objects.draw(vp, spheres, tonemap, exposure)
+        if self.bake.scene.dynamic and self.bake.probes is not None and mode == "lightmap":
+            if self.dynamic is None:
+                from .objects import DynamicMeshes
+                self.dynamic = DynamicMeshes(ctx, self.bake)
+            offsets = [(0.0, 0.0, 0.0)] * len(self.bake.scene.dynamic)
+            for o in objects:
+                if isinstance(o, Placed):
+                    offsets[o.index] = o.offset
+            self.dynamic.draw(vp, offsets, tonemap, exposure)
         if probes:
             if self.probe_view is None:
                 from .objects import ProbeGridView
@@ -191,7 +212,7 @@ class Renderer:
             self.probe_view.draw(vp, tonemap, exposure)
 
     def release(self):
-        for view in (self.probe_objects, self.probe_view):
+        for view in (self.probe_objects, self.probe_view, self.dynamic):
             if view is not None:
                 view.release()
         for prog, vao in (*self.variants.values(), *self.sky_programs.values()):

@@ -11,7 +11,9 @@ glfw). Keys and mouse become `Controls` for the pure-maths camera
     B               bicubic lightmap filtering on/off   Esc     quit
     O               drop a sphere in front of the camera, lit by the bake's probes (again: remove it)
     G               show the probes as small spheres lit by their SH (invalid ones red) on/off
-    arrow keys      move the sphere (left, right, away, nearer); Page Up / Page Down: up, down
+    N               choose the object the arrow keys move: the sphere, then each of the bake's dynamic
+                    meshes (voxbake bake --dynamic NODE), lit by the probes wherever they go
+    arrow keys      move that object (left, right, away, nearer); Page Up / Page Down: up, down
 
 Scripted input (`--script FILE.json`, for tests and demos): a list of
 events {"frame": n, "key": "W", "action": "press" | "release"},
@@ -155,6 +157,8 @@ class Walkthrough:
             self.mode = "lightmap"
         self.preview = None
         self.sphere = None   # objects.Sphere the user dropped (O), lit by the probes
+        self.offsets = [np.zeros(3) for _ in bake.scene.dynamic]   # how far each dynamic mesh was moved
+        self.selected = 0 if bake.scene.dynamic else None   # what the arrow keys move: a dynamic mesh, or None: the sphere
         self.show_probes = show_probes   # the probes drawn (G)
         self.note = ""
         lo, hi = bake.scene.bounds()   # once: the bounds of a large scene take milliseconds, a frame's budget
@@ -181,7 +185,7 @@ class Walkthrough:
         return glfw, win
 
     def _callbacks(self, glfw, win):
-        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBPOG0123456789"}
+        names = {getattr(glfw, f"KEY_{k}"): k for k in "WASDQEMBPOGN0123456789"}
         names.update({glfw.KEY_LEFT: "LEFT", glfw.KEY_RIGHT: "RIGHT", glfw.KEY_UP: "UP", glfw.KEY_DOWN: "DOWN",
                       glfw.KEY_PAGE_UP: "PAGEUP", glfw.KEY_PAGE_DOWN: "PAGEDOWN"})
         names.update({glfw.KEY_LEFT_SHIFT: "SHIFT", glfw.KEY_RIGHT_SHIFT: "SHIFT", glfw.KEY_F12: "F12",
@@ -245,6 +249,8 @@ class Walkthrough:
             self.preview_on = not self.preview_on
         elif key == "O":
             self._toggle_sphere(camera)
+        elif key == "N":
+            self._select_next()
         elif key == "G":
             if self.bake.probes is None:
                 self.note = "no probes in this bake (baked with --no-probes)"
@@ -260,18 +266,40 @@ class Walkthrough:
         from .objects import Sphere
         if self.sphere is not None:
             self.sphere = None
+            self.selected = 0 if self.bake.scene.dynamic else None
         elif self.bake.probes is None:
             self.note = "no probes in this bake (baked with --no-probes)"
         else:
             e = self.extent
             centre = np.asarray(camera.position) + SPHERE_AHEAD * e * camera.forward
             self.sphere = Sphere(tuple(float(v) for v in centre), SPHERE_SIZE * e)
+            self.selected = None
+
+    def _select_next(self):
+        """N: the next movable object (the sphere if dropped, then each
+        dynamic mesh), named in the status line."""
+        choices = ([None] if self.sphere is not None else []) + list(range(len(self.bake.scene.dynamic)))
+        if not choices:
+            self.note = "nothing to move: O drops a sphere (dynamic meshes: voxbake bake --dynamic NODE)"
+            return
+        at = choices.index(self.selected) if self.selected in choices else -1
+        self.selected = choices[(at + 1) % len(choices)]
+        self.note = "moving " + ("the sphere" if self.selected is None else
+                                 repr(self.bake.scene.dynamic[self.selected].name))
+
+    def objects(self) -> tuple:
+        """What the lightmap view draws lit by the probes: the sphere, and
+        each dynamic mesh where it was moved."""
+        from .objects import Placed
+        placed = tuple(Placed(i, tuple(float(v) for v in off)) for i, off in enumerate(self.offsets))
+        return ((self.sphere,) if self.sphere is not None else ()) + placed
 
     def _move_sphere(self, camera, dt):
-        """The sphere moved by the arrow keys held: along the camera's right,
-        its forward on the ground plane, and up."""
+        """The selected object (the sphere or a dynamic mesh) moved by the
+        arrow keys held: along the camera's right, its forward on the ground
+        plane, and up."""
         from dataclasses import replace as _replace
-        if self.sphere is None:
+        if self.selected is None and self.sphere is None:
             return
         flat = np.array([camera.forward[0], 0.0, camera.forward[2]])
         flat /= np.linalg.norm(flat) or 1.0
@@ -281,6 +309,9 @@ class Walkthrough:
             if k in self.input.held:
                 step += sign * axes[axis]
         if step.any():
+            if self.selected is not None:
+                self.offsets[self.selected] = self.offsets[self.selected] + 0.1 * self.extent * dt * step
+                return
             c = np.asarray(self.sphere.center) + 0.1 * self.extent * dt * step
             self.sphere = _replace(self.sphere, center=tuple(float(v) for v in c))
 
@@ -349,7 +380,7 @@ class Walkthrough:
                 else:
                     ctx.screen.use()
                     ctx.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-                    objects = (self.sphere,) if self.sphere is not None and self.mode == "lightmap" else ()
+                    objects = self.objects() if self.mode == "lightmap" else ()
                     renderer.render(camera, w, h, self.mode, 2.0 ** self.exposure_ev, True, self.bicubic, objects,
                                     self.show_probes and self.mode == "lightmap")
                 fps_n += 1
@@ -359,7 +390,7 @@ class Walkthrough:
                 view = (f"preview {self.preview.used} VPLs" if self.preview_on and self.preview is not None
                         else f"{self.mode}{' bicubic' if self.bicubic else ''}")
                 overlay.draw(f"{rate}   {view}   EV {self.exposure_ev:+.1f}   F1-F5 views, P preview, "
-                             f"+/- exposure, 1-9 cameras, O sphere, G probes{'   ' + self.note if self.note else ''}", w, h)
+                             f"+/- exposure, 1-9 cameras, O sphere, N next object, G probes{'   ' + self.note if self.note else ''}", w, h)
                 frame += 1
                 if self.frames is not None and frame >= self.frames:
                     if self.screenshot_path:

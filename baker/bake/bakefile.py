@@ -87,10 +87,11 @@ def write_bake(path, bake: Bake, inputs=()):
         page_entries.append({"bufferView": b.buffer_view(_exr(bake.pages[p] * exr_scale)), "mimeType": "image/x-exr",
                              "size": int(bake.pages.shape[1]), "scale": float(bake.page_scale[p])})
     albedo_tex, emit_tex = {}, {}
+    with_uvs = scene.uvs is not None or any(d.uvs is not None for d in scene.dynamic)
     for i, m in enumerate(scene.materials):
-        if m.texture is not None and scene.uvs is not None:
+        if m.texture is not None and with_uvs:
             albedo_tex[i] = b.texture(b.image(_texture_png(m.texture, m.opacity)), clamp=False)
-        if m.emission_texture is not None and scene.uvs is not None and float(np.max(m.emission)) > 0:
+        if m.emission_texture is not None and with_uvs and float(np.max(m.emission)) > 0:
             emit_tex[i] = b.texture(b.image(_texture_png(m.emission_texture, None)), clamp=False)
     corners = scene.vertices.reshape(-1, 3, 3)
     normals = scene.normals.reshape(-1, 3, 3)
@@ -109,6 +110,8 @@ def write_bake(path, bake: Bake, inputs=()):
         parts.append({"positions": corners[t], "normals": normals[t], "uv0": uv0[t], "uv1": bake.uv1[t],
                       "material": mat})
     b.primitives("baked", parts)
+    moving = [{"node": _dynamic_node(b, d, scene.materials, albedo_tex, emit_tex), "name": d.name}
+              for d in scene.dynamic]
     for cam in scene.cameras:
         b.camera(cam.name, cam.position, cam.forward, cam.up, float(np.degrees(cam.yfov)), cam.aspect or 1.0)
     for light in scene.lights:
@@ -127,9 +130,27 @@ def write_bake(path, bake: Bake, inputs=()):
         root["sky"] = {"radiance": [float(v) for v in scene.sky.radiance], "hemisphere": bool(scene.sky.hemisphere)}
     if bake.probes is not None:
         root["probes"] = _probe_entry(b, bake.probes)
+    if moving:
+        root["dynamic"] = moving
     extras = {"voxgi": {"formatVersion": FORMAT_VERSION, "version": __version__, **_jsonable(bake.meta)}}
     b.save(path, extensions={EXTENSION: root}, extras=extras, checksum_key="voxgi", inputs=inputs)
     return path
+
+
+def _dynamic_node(b, d, materials, albedo_tex, emit_tex) -> int:
+    """A dynamic mesh (scene.DynamicMesh) as a plain glTF node at its pivot,
+    one primitive per material, no lightmap: the node's index."""
+    parts = []
+    for mi in np.unique(d.material_ids).tolist():
+        m = materials[mi]
+        used, local = np.unique(d.triangles[d.material_ids == mi], return_inverse=True)
+        textured = d.uvs is not None
+        mat = b.material(m.name, list(m.albedo) + [m.alpha], m.emission, True,
+                         albedo_tex.get(mi) if textured else None, None, m.alpha_cutoff, m.transmission,
+                         emit_tex.get(mi) if textured else None)
+        parts.append({"positions": d.vertices[used].astype(np.float64) - d.pivot, "normals": d.normals[used],
+                      "uv0": d.uvs[used] if textured else None, "triangles": local.reshape(-1, 3), "material": mat})
+    return b.primitives(d.name, parts, translation=d.pivot)
 
 
 PROBES_VERSION = 2   # 2: the octahedral maps in a turned frame (probes/gather.py MAP_FRAME)
@@ -283,8 +304,9 @@ def read_bake(path) -> Bake:
         raise BakeFileError("damaged or altered (the file's checksum does not match)", path)
     from ..scene.gltf_read import read_gltf
     from ..scene.load import scene_from_parts
+    moving = _dynamic_entries(root.get("dynamic"), doc, path)
     try:
-        parts = read_gltf(path)
+        parts = read_gltf(path, dynamic=moving)
         uv1 = parts.pop("uvs1")
         exts = parts.pop("material_extensions")
         if uv1 is None:
@@ -292,12 +314,16 @@ def read_bake(path) -> Bake:
         scene = scene_from_parts(path, clean=False, **{k: v for k, v in parts.items() if k != "notes"})
     except SceneError as e:
         raise BakeFileError(f"damaged bake file ({e.args[0]})", path) from None
+    if len(scene.dynamic) != len(moving):
+        raise BakeFileError(f"damaged bake file ({len(moving)} dynamic nodes listed, {len(scene.dynamic)} hold "
+                            f"meshes of their own)", path)
     try:
         entries = root["pages"]
         if not isinstance(entries, list) or not entries:
             raise BakeFileError("the bake holds no lightmap pages", path)
-        mat_page = np.array([_index((e or {}).get(EXTENSION, {}).get("page"), len(entries), "material's page")
-                             for e in exts], np.int32)
+        mat_page = np.array([-1 if (e or {}).get(EXTENSION) is None else   # a dynamic mesh's: no page
+                             _index(e[EXTENSION].get("page"), len(entries), "material's page") for e in exts],
+                            np.int32)
         pages = [_read_exr_page(blob, doc, entry) for entry in entries]
         scale = np.array([float(e["scale"]) for e in entries], np.float32)
         exr_scale = float(root.get("exrScale", 1.0))
@@ -311,6 +337,8 @@ def read_bake(path) -> Bake:
     if len(scene.triangles) * 3 != len(uv1):
         raise BakeFileError("triangles and lightmap UVs disagree (the file drops or merges triangles)", path)
     page = mat_page[scene.material_ids]
+    if (page < 0).any():
+        raise BakeFileError("a baked triangle's material names no lightmap page", path)
     if not np.isfinite(pages).all() or pages.min() < 0:
         raise BakeFileError("lightmap pages hold negative or non-finite values", path)
     if not np.isfinite(uv1).all():
@@ -327,7 +355,29 @@ def read_bake(path) -> Bake:
         probes = _read_probes(blob, doc, root.get("probes"))
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
         raise BakeFileError(f"damaged probe block ({type(e).__name__}: {e})", path) from None
+    if scene.dynamic and probes is None:
+        raise BakeFileError("damaged bake file (dynamic meshes, but no probe block to light them)", path)
     return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls, probes)
+
+
+MAX_DYNAMIC = 4096   # dynamic meshes a bake may list
+
+
+def _dynamic_entries(entry, doc, path) -> tuple:
+    """The node indices of the bake's dynamic meshes (root `dynamic`:
+    [{"node": i, "name": s}]), each checked: in range, once."""
+    if entry is None:
+        return ()
+    n_nodes = len(doc.get("nodes") or [])
+    try:
+        if not isinstance(entry, list) or not 0 < len(entry) <= MAX_DYNAMIC:
+            raise ValueError(f"a list of 1..{MAX_DYNAMIC} entries expected")
+        nodes = tuple(_index(e.get("node"), n_nodes, "node") for e in entry)
+        if len(set(nodes)) != len(nodes):
+            raise ValueError("a node listed twice")
+    except (AttributeError, TypeError, ValueError) as e:
+        raise BakeFileError(f"damaged dynamic mesh list ({type(e).__name__}: {e})", path) from None
+    return nodes
 
 
 def _read_sky(entry, path):

@@ -62,6 +62,6 @@ def baked_scene(scene, charts, lightmaps, meta=None, vpls=None, probes=None) -> 
                   material_ids=scene.material_ids[tri].astype(np.int32), materials=materials,
                   normals=normals.reshape(-1, 3).astype(np.float32),
                   uvs=None if uvs is None else uvs.astype(np.float32), cameras=tuple(scene.cameras),
-                  lights=tuple(scene.lights), sky=scene.sky, path=scene.path)
+                  lights=tuple(scene.lights), sky=scene.sky, path=scene.path, dynamic=tuple(scene.dynamic))
     return Bake(baked, uv1.astype(np.float32), lightmaps.chart_page[order].astype(np.int32), lightmaps.pages,
                 lightmaps.page_scale.astype(np.float32), dict(meta or {}), vpls, probes)

@@ -67,6 +67,10 @@ class BakeResult:
             rows.append(("probes", f"{pr.count:,} ({' x '.join(str(int(d)) for d in pr.dims)}, "
                                    f"{int(pr.valid.sum()):,} valid), {pr.spacing:.4g} scene units apart, "
                                    f"{pr.rays:,} rays each"))
+        moving = self.bake.scene.dynamic
+        if moving:
+            rows.append(("dynamic meshes", f"{len(moving)} ({sum(len(d.triangles) for d in moving):,} triangles; not "
+                                           f"baked, lit by the probes): {', '.join(d.name for d in moving)}"))
         if self.run:
             rows.append(("workers", self.run))
         w = max(len(k) for k, _ in rows)

@@ -240,12 +240,75 @@ def _wrap1(row, col, size):
     return r, c
 
 
+@njit(cache=True, inline="always")
+def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac):
+    """(r, g, b): interpolate's sum at point x (3,) with unit normal n
+    (3,), its probes weighted by seen[probe] (the anchor test, made
+    beforehand); base (3,) int64 and frac (3,) scratch."""
+    isz, dsz = irr.shape[1], depth.shape[1]
+    for k in range(3):
+        g = (x[k] - origin[k]) / spacing
+        b = min(max(int(np.floor(g)), 0), max(dims[k] - 2, 0))
+        base[k] = b
+        frac[k] = min(max(g - b, 0.0), 1.0) if dims[k] > 1 else 0.0
+    lx, ly, lz = x[0] + BIAS * spacing * n[0], x[1] + BIAS * spacing * n[1], x[2] + BIAS * spacing * n[2]
+    # the normal's texel in the probes' irradiance maps, as irradiance_map_at reads it
+    u, v = _oct_col_row(n[0], n[1], n[2], isz)
+    fx, fy = u - 0.5, v - 0.5
+    c0, r0 = int(np.floor(fx)), int(np.floor(fy))
+    fx, fy = fx - c0, fy - r0
+    ra, ca = _wrap1(r0, c0, isz)
+    rb, cb = _wrap1(r0, c0 + 1, isz)
+    rc, cc = _wrap1(r0 + 1, c0, isz)
+    rd, cd = _wrap1(r0 + 1, c0 + 1, isz)
+    wa, wb, wc, wd = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+    t0 = t1 = t2 = 0.0
+    total = 0.0
+    for corner in range(8):
+        i0 = min(base[0] + (corner & 1), dims[0] - 1)
+        i1 = min(base[1] + ((corner >> 1) & 1), dims[1] - 1)
+        i2 = min(base[2] + ((corner >> 2) & 1), dims[2] - 1)
+        flat = i0 + dims[0] * (i1 + dims[1] * i2)
+        if seen[flat] == 0:
+            continue
+        w = (frac[0] if corner & 1 else 1.0 - frac[0]) * (frac[1] if (corner >> 1) & 1 else 1.0 - frac[1]) \
+            * (frac[2] if (corner >> 2) & 1 else 1.0 - frac[2])
+        vx = lx - (origin[0] + spacing * i0)
+        vy = ly - (origin[1] + spacing * i1)
+        vz = lz - (origin[2] + spacing * i2)
+        d = np.sqrt(vx * vx + vy * vy + vz * vz)
+        dd = max(d, 1e-12)
+        du, dv = _oct_col_row(vx / dd, vy / dd, vz / dd, dsz)
+        dc, dr = min(max(int(du), 0), dsz - 1), min(max(int(dv), 0), dsz - 1)
+        mean, mean2 = float(depth[flat, dr, dc, 0]), float(depth[flat, dr, dc, 1])
+        var = max(mean2 - mean * mean, MIN_VAR * spacing * spacing)
+        cheb = 1.0 if d <= mean else var / (var + (d - mean) * (d - mean))
+        cheb = cheb * cheb * cheb
+        if cheb < CRUSH:
+            continue
+        w *= cheb
+        for ch in range(3):
+            e = wa * irr[flat, ra, ca, ch] + wb * irr[flat, rb, cb, ch] + wc * irr[flat, rc, cc, ch] \
+                + wd * irr[flat, rd, cd, ch]
+            if ch == 0:
+                t0 += w * e
+            elif ch == 1:
+                t1 += w * e
+            else:
+                t2 += w * e
+        total += w
+    if total > 0.0:
+        return max(t0 / total, 0.0), max(t1 / total, 0.0), max(t2 / total, 0.0)
+    return 0.0, 0.0, 0.0
+
+
 @njit(cache=True, fastmath=True, error_model="numpy")
 def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
     size = out.shape[0]
-    isz, dsz = irr.shape[1], depth.shape[1]
     base = np.empty(3, np.int64)
     frac = np.empty(3)
+    x = np.empty(3)
+    nn = np.empty(3)
     for row in range(size):
         for col in range(size):
             # the texel centre's normal (the inverse of oct_uv)
@@ -256,59 +319,34 @@ def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
                 nx, ny = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
             ln = np.sqrt(nx * nx + ny * ny + nz * nz)
             n = from_map(nx / ln, ny / ln, nz / ln)
-            x = (center[0] + radius * n[0], center[1] + radius * n[1], center[2] + radius * n[2])
             for k in range(3):
-                g = (x[k] - origin[k]) / spacing
-                b = min(max(int(np.floor(g)), 0), max(dims[k] - 2, 0))
-                base[k] = b
-                frac[k] = min(max(g - b, 0.0), 1.0) if dims[k] > 1 else 0.0
-            lx, ly, lz = x[0] + BIAS * spacing * n[0], x[1] + BIAS * spacing * n[1], x[2] + BIAS * spacing * n[2]
-            # the normal's texel in the probes' irradiance maps, as irradiance_map_at reads it
-            u, v = _oct_col_row(n[0], n[1], n[2], isz)
-            fx, fy = u - 0.5, v - 0.5
-            c0, r0 = int(np.floor(fx)), int(np.floor(fy))
-            fx, fy = fx - c0, fy - r0
-            ra, ca = _wrap1(r0, c0, isz)
-            rb, cb = _wrap1(r0, c0 + 1, isz)
-            rc, cc = _wrap1(r0 + 1, c0, isz)
-            rd, cd = _wrap1(r0 + 1, c0 + 1, isz)
-            wa, wb, wc, wd = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
-            t0 = t1 = t2 = 0.0
-            total = 0.0
-            for corner in range(8):
-                i0 = min(base[0] + (corner & 1), dims[0] - 1)
-                i1 = min(base[1] + ((corner >> 1) & 1), dims[1] - 1)
-                i2 = min(base[2] + ((corner >> 2) & 1), dims[2] - 1)
-                flat = i0 + dims[0] * (i1 + dims[1] * i2)
-                if seen[flat] == 0:
-                    continue
-                w = (frac[0] if corner & 1 else 1.0 - frac[0]) * (frac[1] if (corner >> 1) & 1 else 1.0 - frac[1]) \
-                    * (frac[2] if (corner >> 2) & 1 else 1.0 - frac[2])
-                vx = lx - (origin[0] + spacing * i0)
-                vy = ly - (origin[1] + spacing * i1)
-                vz = lz - (origin[2] + spacing * i2)
-                d = np.sqrt(vx * vx + vy * vy + vz * vz)
-                dd = max(d, 1e-12)
-                du, dv = _oct_col_row(vx / dd, vy / dd, vz / dd, dsz)
-                dc, dr = min(max(int(du), 0), dsz - 1), min(max(int(dv), 0), dsz - 1)
-                mean, mean2 = float(depth[flat, dr, dc, 0]), float(depth[flat, dr, dc, 1])
-                var = max(mean2 - mean * mean, MIN_VAR * spacing * spacing)
-                cheb = 1.0 if d <= mean else var / (var + (d - mean) * (d - mean))
-                cheb = cheb * cheb * cheb
-                if cheb < CRUSH:
-                    continue
-                w *= cheb
-                for ch in range(3):
-                    e = wa * irr[flat, ra, ca, ch] + wb * irr[flat, rb, cb, ch] + wc * irr[flat, rc, cc, ch] \
-                        + wd * irr[flat, rd, cd, ch]
-                    if ch == 0:
-                        t0 += w * e
-                    elif ch == 1:
-                        t1 += w * e
-                    else:
-                        t2 += w * e
-                total += w
-            if total > 0.0:
-                out[row, col, 0] = max(t0 / total, 0.0)
-                out[row, col, 1] = max(t1 / total, 0.0)
-                out[row, col, 2] = max(t2 / total, 0.0)
+                nn[k] = n[k]
+                x[k] = center[k] + radius * n[k]
+            r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, x, nn, base, frac)
+            out[row, col, 0] = r
+            out[row, col, 1] = g
+            out[row, col, 2] = b
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _points_irradiance(irr, depth, seen, origin, spacing, dims, points, normals, out):
+    base = np.empty(3, np.int64)
+    frac = np.empty(3)
+    for i in range(points.shape[0]):
+        r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, points[i], normals[i], base, frac)
+        out[i, 0] = r
+        out[i, 1] = g
+        out[i, 2] = b
+
+
+def points_irradiance(grid, points, normals, seen) -> np.ndarray:
+    """(n, 3) float32: interpolate at points (n, 3) with unit normals
+    (n, 3), the probes weighted by seen (count,) uint8 (probe_seen: valid
+    and seen from the object's anchor) instead of a ray per point: what the
+    viewer lights a dynamic mesh's vertices with when it moves. One thread,
+    as sphere_map."""
+    out = np.zeros((len(points), 3), np.float32)
+    _points_irradiance(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
+                       np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
+                       np.ascontiguousarray(points, np.float64), np.ascontiguousarray(normals, np.float64), out)
+    return out

@@ -5,7 +5,7 @@ from .bvh import BVH, build_scene_bvh
 from .camera import adjust_camera, auto_camera, camera_for
 from .load import builtin_scenes, load_scene
 from .prepared import Prepared, prepare
-from .model import Camera, Material, PunctualLight, Scene, Sky, make_camera, sun
+from .model import Camera, DynamicMesh, Material, PunctualLight, Scene, Sky, make_camera, sun
 from .surfaces import Surfaces, pack
 
 __all__ = ["BVH", "Camera", "Material", "Prepared", "PunctualLight", "Scene", "Sky", "Surfaces", "adjust_camera", "auto_camera",

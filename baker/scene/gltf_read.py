@@ -155,8 +155,11 @@ def _node_matrix(node):
     return m
 
 
-def _world_nodes(doc, path):
-    """Yields (node index, world matrix) over the default scene's hierarchy."""
+def _world_nodes(doc, path, dynamic=frozenset()):
+    """Yields (node index, world matrix, object) over the default scene's
+    hierarchy: object -1 for a static node, else a number per visit of the
+    outermost node in `dynamic` (node indices) above it or itself: each
+    instance of a dynamic node is an object of its own."""
     nodes = doc.nodes or []
     if doc.scenes:
         roots = _item(doc.scenes, doc.scene or 0, "scene", path).nodes or []
@@ -165,10 +168,10 @@ def _world_nodes(doc, path):
         roots = [i for i in range(len(nodes)) if i not in children]
     for i in roots:
         _item(nodes, i, "scene root node", path)
-    stack = [(i, np.eye(4), 0) for i in reversed(roots)]  # depth-first, document order
-    seen = 0
+    stack = [(i, np.eye(4), 0, -1) for i in reversed(roots)]  # depth-first, document order
+    seen = objects = 0
     while stack:
-        i, parent, depth = stack.pop()
+        i, parent, depth, obj = stack.pop()
         seen += 1
         if depth > 256:
             raise SceneError("node hierarchy deeper than 256 (a cycle?)", path)
@@ -177,11 +180,28 @@ def _world_nodes(doc, path):
         world = parent @ _node_matrix(nodes[i])
         if not np.isfinite(world).all():
             raise SceneError(f"node {i}: its transform is not finite", path)
-        yield i, world
+        if obj < 0 and i in dynamic:
+            obj, objects = objects, objects + 1
+        yield i, world, obj
         children = nodes[i].children or []
         for c in children:
             _item(nodes, c, f"node {i} child", path)
-        stack.extend((c, world, depth + 1) for c in reversed(children))
+        stack.extend((c, world, depth + 1, obj) for c in reversed(children))
+
+
+def dynamic_nodes(doc, names, path) -> frozenset:
+    """The indices of the nodes named in `names` (--dynamic): SceneError
+    for a name no node has."""
+    nodes = doc.nodes or []
+    found = set()
+    for name in names:
+        hits = [i for i, n in enumerate(nodes) if n.name == name]
+        if not hits:
+            named = sorted({n.name for n in nodes if isinstance(n.name, str) and n.name})
+            listed = ", ".join(repr(n) for n in named[:12]) + (", ..." if len(named) > 12 else "")
+            raise SceneError(f"--dynamic {name!r}: no node has that name (nodes: {listed or 'none named'})", path)
+        found.update(hits)
+    return frozenset(found)
 
 
 def _texture(doc, bufs, tex_index, path, limits, alpha=False):
@@ -269,9 +289,23 @@ def _check_glb_header(path):
         raise SceneError(f"the header says {length} bytes, the file has {size} (truncated or padded?)", path)
 
 
-def read_gltf(path, limits: LoadLimits = LoadLimits()):
+class _Part:
+    """Triangles gathered from primitives: the static scene's, or one
+    dynamic object's."""
+
+    def __init__(self, name="", pivot=None):
+        self.name, self.pivot = name, pivot
+        self.verts, self.tris, self.mids, self.norms, self.uvs, self.uvs1 = [], [], [], [], [], []
+        self.offset, self.has_normals, self.has_uvs1 = 0, True, True
+        self.names = set()   # the names of the nodes it holds
+
+
+def read_gltf(path, limits: LoadLimits = LoadLimits(), dynamic=()):
     """The parts of a Scene from a .gltf/.glb file, every index and size in
-    it checked before use (refs.py: what it may make us read)."""
+    it checked before use (refs.py: what it may make us read). `dynamic`:
+    node names (str) or indices (int) whose meshes, with their children's,
+    are moving objects (parts["dynamic"], a list of dicts) rather than
+    scene triangles."""
     import warnings
 
     import pygltflib
@@ -343,14 +377,20 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
             ignored.setdefault(what, []).append(name)
     n_file_materials = len(materials)
     default_index = None
-    verts, tris, mids, norms, uvs, uvs1 = [], [], [], [], [], []
-    has_normals = has_uvs1 = True
-    offset = 0
+    names = [d for d in dynamic if isinstance(d, str)]
+    chosen = dynamic_nodes(doc, names, path) | {int(d) for d in dynamic if not isinstance(d, str)}
+    static, objects = _Part(), {}
+    total_tris = 0
     cameras, lights = [], []
     light_defs = ((doc.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
     zeros_limit = file_size
-    for ni, world in _world_nodes(doc, path):
+    for ni, world, obj in _world_nodes(doc, path, chosen):
         node = doc.nodes[ni]
+        if obj >= 0 and obj not in objects:
+            objects[obj] = _Part(node.name if isinstance(node.name, str) and node.name else f"node_{ni}",
+                                 world[:3, 3].copy())
+        part = static if obj < 0 else objects[obj]
+        part.names.add(node.name)
         if node.camera is not None:
             cam = _item(doc.cameras, node.camera, f"node {ni} camera", path)
             if cam.type == "perspective" and cam.perspective is not None:
@@ -410,11 +450,11 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
             if len(t) and (t.min() < 0 or t.max() >= len(pos)):
                 raise SceneError(f"mesh {node.mesh}: triangle indices out of range (0..{len(pos) - 1}, "
                                  f"found up to {t.max()})", path)
-            offset_t = sum(len(x) for x in tris) + len(t)
-            limits.check_bytes(float(offset_t) * LOAD_BYTES_PER_TRIANGLE, f"{offset_t} triangles", path)
+            total_tris += len(t)
+            limits.check_bytes(float(total_tris) * LOAD_BYTES_PER_TRIANGLE, f"{total_tris} triangles", path)
             if flip:
                 t = t[:, ::-1]
-            verts.append(pos @ world[:3, :3].T + world[:3, 3])
+            part.verts.append(pos @ world[:3, :3].T + world[:3, 3])
             if prim.attributes.NORMAL is not None:
                 n = _accessor(doc, bufs, prim.attributes.NORMAL, path, "NORMAL", vector_types, ("VEC3",),
                               zeros_limit).astype(np.float64)
@@ -422,10 +462,10 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
                     raise SceneError(f"mesh {node.mesh}: {len(n)} normals for {len(pos)} positions", path)
                 n = n @ normal_matrix.T
                 n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
-                norms.append(n)
+                part.norms.append(n)
             else:
-                has_normals = False
-            for slot, out in (("TEXCOORD_0", uvs), ("TEXCOORD_1", uvs1)):
+                part.has_normals = False
+            for slot, out in (("TEXCOORD_0", part.uvs), ("TEXCOORD_1", part.uvs1)):
                 ref = getattr(prim.attributes, slot)
                 if ref is not None:
                     uv = _accessor(doc, bufs, ref, path, slot, (5126, 5121, 5123) if not quantized else
@@ -434,9 +474,9 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
                         raise SceneError(f"mesh {node.mesh}: {len(uv)} {slot} for {len(pos)} positions", path)
                     out.append(uv)
                 elif slot == "TEXCOORD_0":   # kept when another primitive has them (a textured one needs them)
-                    uvs.append(np.zeros((len(pos), 2), np.float32))
+                    part.uvs.append(np.zeros((len(pos), 2), np.float32))
                 else:
-                    has_uvs1 = False
+                    part.has_uvs1 = False
             if prim.material is None:
                 if default_index is None:
                     default_index = len(materials)
@@ -445,18 +485,46 @@ def read_gltf(path, limits: LoadLimits = LoadLimits()):
             else:
                 mid = _int(prim.material, f"mesh {node.mesh} material index", path, 0, n_file_materials - 1) \
                     if n_file_materials else _item([], prim.material, f"mesh {node.mesh} material", path)
-            tris.append(t + offset)
-            mids.append(np.full(len(t), mid))
-            offset += len(pos)
-    if not tris:
-        raise SceneError("no triangles", path)
+            part.tris.append(t + part.offset)
+            part.mids.append(np.full(len(t), mid))
+            part.offset += len(pos)
+    held = [objects[k] for k in sorted(objects) if objects[k].tris]
+    for d in names:
+        if not any(d in o.names for o in held):
+            raise SceneError(f"--dynamic {d!r}: the node holds no triangles", path)
+    moving = [_dynamic_parts(o) for o in held]
+    if not static.tris:
+        raise SceneError("no triangles" if not moving else "every triangle is in a --dynamic node: nothing is left "
+                         "to bake", path)
     if ignored:
         said = "; ".join(f"{what} in {', '.join(repr(n) for n in names)}" for what, names in ignored.items())
         notes.append(f"{path}: the baker treats every surface as diffuse and ignores {said}")
-    return dict(notes=notes, vertices=np.concatenate(verts), triangles=np.concatenate(tris),
-                material_ids=np.concatenate(mids),
-                materials=materials, normals=np.concatenate(norms) if has_normals and norms else None,
-                uvs=np.concatenate(uvs) if any(p.attributes.TEXCOORD_0 is not None for me in doc.meshes or []
-                                                for p in me.primitives or []) and uvs else None, cameras=cameras, lights=lights,
-                uvs1=np.concatenate(uvs1) if has_uvs1 and uvs1 else None,
-                material_extensions=[dict(m.extensions or {}) for m in doc.materials or []])
+    any_uv = any(p.attributes.TEXCOORD_0 is not None for me in doc.meshes or [] for p in me.primitives or [])
+    out = dict(notes=notes, vertices=np.concatenate(static.verts), triangles=np.concatenate(static.tris),
+               material_ids=np.concatenate(static.mids),
+               materials=materials, normals=np.concatenate(static.norms) if static.has_normals and static.norms
+               else None, uvs=np.concatenate(static.uvs) if any_uv and static.uvs else None, cameras=cameras,
+               lights=lights, uvs1=np.concatenate(static.uvs1) if static.has_uvs1 and static.uvs1 else None,
+               material_extensions=[dict(m.extensions or {}) for m in doc.materials or []])
+    if moving:
+        out["dynamic"] = moving
+    return out
+
+
+def _dynamic_parts(part: _Part) -> dict:
+    """One dynamic object's arrays (DynamicMesh's fields), normals made
+    from its faces where the file gives none."""
+    v = np.concatenate(part.verts)
+    t = np.concatenate(part.tris)
+    if part.has_normals and part.norms:
+        n = np.concatenate(part.norms)
+    else:   # area-weighted face normals at the vertices
+        c = v[t]
+        face = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        n = np.zeros_like(v)
+        for k in range(3):
+            np.add.at(n, t[:, k], face)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    uv = np.concatenate(part.uvs) if part.uvs and len(part.uvs) == len(part.verts) else None
+    return dict(name=part.name, pivot=part.pivot, vertices=v, triangles=t, material_ids=np.concatenate(part.mids),
+                normals=n, uvs=uv)

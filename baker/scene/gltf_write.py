@@ -148,10 +148,11 @@ class GltfBuilder:
             g.Primitive(attributes=attrs, indices=idx, material=material)]))
         return self._add_node(g.Node(name=name, mesh=len(self.doc.meshes) - 1))
 
-    def primitives(self, name, parts) -> int:
-        """One mesh of several primitives; each part a dict with positions
-        (n, 3), material, and optional normals (n, 3), uv0, uv1 (n, 2),
-        triangles (m, 3) (default: consecutive corners)."""
+    def primitives(self, name, parts, translation=None) -> int:
+        """One mesh of several primitives in a node (moved by `translation`
+        (3,) if given); each part a dict with positions (n, 3), material,
+        and optional normals (n, 3), uv0, uv1 (n, 2), triangles (m, 3)
+        (default: consecutive corners)."""
         prims = []
         for part in parts:
             pos = np.asarray(part["positions"], np.float32).reshape(-1, 3)
@@ -168,7 +169,10 @@ class GltfBuilder:
             idx = self._accessor(tris.reshape(-1), "SCALAR", g.ELEMENT_ARRAY_BUFFER)
             prims.append(g.Primitive(attributes=attrs, indices=idx, material=int(part["material"])))
         self.doc.meshes.append(g.Mesh(name=name, primitives=prims))
-        return self._add_node(g.Node(name=name, mesh=len(self.doc.meshes) - 1))
+        node = g.Node(name=name, mesh=len(self.doc.meshes) - 1)
+        if translation is not None:
+            node.translation = [float(v) for v in translation]
+        return self._add_node(node)
 
     def camera(self, name, position, forward, up=(0, 1, 0), yfov_deg=45.0, aspect=1.0) -> int:
         self.doc.cameras.append(g.Camera(name=name, type="perspective", perspective=g.Perspective(

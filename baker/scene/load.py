@@ -10,7 +10,7 @@ from importlib.resources import files
 import numpy as np
 
 from ..errors import SceneError, VoxgiError, VoxgiWarning
-from .model import Scene, Sky, make_material
+from .model import DynamicMesh, Scene, Sky, make_material
 from .overlaps import MAX_PIECES, cut_overlaps
 from .refs import LoadLimits, check_regular, read_file
 
@@ -47,7 +47,7 @@ def resolve(path) -> str:
 
 
 def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None,
-               limits: LoadLimits = LoadLimits()) -> Scene:
+               limits: LoadLimits = LoadLimits(), dynamic=()) -> Scene:
     """Loads a .gltf/.glb, .obj or .ply file (or a built-in scene by name)
     into a validated `Scene`, with extra punctual `lights` and a `sky` (a
     scanned model has no lamp of its own).
@@ -57,7 +57,8 @@ def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None,
     own folder only, regular files only) and how much memory the load may
     take. Raises SceneError naming the file and the problem; what the file
     holds that the baker ignores or repairs becomes a VoxgiWarning (and is
-    kept in `Scene.warnings`).
+    kept in `Scene.warnings`). `dynamic`: glTF node names whose meshes
+    move at run time (Scene.dynamic): not baked, lit by the probes.
     """
     path = resolve(path)
     if not os.path.lexists(path):
@@ -69,10 +70,12 @@ def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None,
     except SceneError as e:
         raise SceneError(str(e).replace("the scene: ", ""), path) from None
     ext = os.path.splitext(path)[1].lower()
+    if dynamic and ext not in (".gltf", ".glb"):
+        raise SceneError(f"--dynamic names glTF nodes; a {ext or 'file without extension'} file has none", path)
     try:
         if ext in (".gltf", ".glb"):
             from .gltf_read import read_gltf
-            parts = read_gltf(path, limits)
+            parts = read_gltf(path, limits, tuple(dynamic))
         elif ext == ".obj":
             from .obj import read_obj
             parts = read_obj(path, not one_sided, limits)
@@ -95,11 +98,12 @@ def load_scene(path, one_sided=False, lights=(), sky: Sky | None = None,
 
 
 def scene_from_parts(path, vertices, triangles, material_ids, materials, normals=None, uvs=None, cameras=(),
-                     lights=(), sky=None, notes=(), clean=True) -> Scene:
+                     lights=(), sky=None, notes=(), clean=True, dynamic=()) -> Scene:
     """A validated Scene from a reader's arrays: finite vertices, indices
     in range, sane materials; with `clean`, degenerate and duplicate
     triangles dropped and coplanar overlaps cut (a bake file's geometry
-    is read as written: clean=False)."""
+    is read as written: clean=False). dynamic: dicts of DynamicMesh's
+    fields, checked alike (never cleaned: they are drawn, not baked)."""
     vertices = np.asarray(vertices, np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, np.int64).reshape(-1, 3)
     material_ids = np.asarray(material_ids, np.int64).reshape(-1)
@@ -120,12 +124,13 @@ def scene_from_parts(path, vertices, triangles, material_ids, materials, normals
     if len(material_ids) != len(triangles) or material_ids.min() < 0 or material_ids.max() >= len(materials):
         raise SceneError("material indices out of range", path)
     materials = _checked_materials(path, materials, notes)
+    moving = tuple(_dynamic_mesh(path, d, len(materials)) for d in dynamic)
     if not clean:
         return Scene(vertices=vertices.astype(np.float32), triangles=triangles.astype(np.int32),
                      material_ids=material_ids.astype(np.int32), materials=tuple(materials),
                      normals=None if normals is None else np.asarray(normals, np.float32),
                      uvs=None if uvs is None else np.asarray(uvs, np.float32),
-                     cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path)
+                     cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path, dynamic=moving)
     c = vertices[triangles]
     area2 = np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
     scale = float(np.abs(vertices).max()) or 1.0
@@ -161,13 +166,42 @@ def scene_from_parts(path, vertices, triangles, material_ids, materials, normals
                   material_ids=material_ids.astype(np.int32), materials=tuple(materials),
                   normals=None if normals is None else np.asarray(normals, np.float32),
                   uvs=None if uvs is None else np.asarray(uvs, np.float32),
-                  cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path)
+                  cameras=tuple(cameras), lights=tuple(lights), sky=sky, path=path, dynamic=moving)
     if not scene.has_light():
         notes.append(f"{path}: the scene has no emitter (no emissive material, no punctual light): it will bake "
                      f"black unless lit with --sky or --sun")
     for note in notes:
         warnings.warn(note, VoxgiWarning, stacklevel=3)
     return replace(scene, warnings=tuple(notes))
+
+
+def _dynamic_mesh(path, d: dict, n_materials: int) -> DynamicMesh:
+    """A DynamicMesh from a reader's dict, every array checked."""
+    name = str(d["name"])
+    v = np.asarray(d["vertices"], np.float64).reshape(-1, 3)
+    t = np.asarray(d["triangles"], np.int64).reshape(-1, 3)
+    m = np.asarray(d["material_ids"], np.int64).reshape(-1)
+    n = np.asarray(d["normals"], np.float64).reshape(-1, 3)
+    pivot = np.asarray(d["pivot"], np.float64).reshape(-1)
+    what = f"dynamic mesh {name!r}"
+    if len(t) == 0:
+        raise SceneError(f"{what}: no triangles", path)
+    if pivot.shape != (3,) or not np.isfinite(pivot).all() or not np.isfinite(v).all() or np.abs(v).max() > 1e18:
+        raise SceneError(f"{what}: vertices or position not finite (or beyond 1e18)", path)
+    if t.min() < 0 or t.max() >= len(v):
+        raise SceneError(f"{what}: triangle indices out of range (0..{len(v) - 1})", path)
+    if len(m) != len(t) or m.min() < 0 or m.max() >= n_materials:
+        raise SceneError(f"{what}: material indices out of range", path)
+    if n.shape != v.shape or not np.isfinite(n).all():
+        raise SceneError(f"{what}: not one finite normal per vertex", path)
+    uv = d.get("uvs")
+    if uv is not None:
+        uv = np.asarray(uv, np.float64).reshape(-1, 2)
+        if len(uv) != len(v) or not np.isfinite(uv).all():
+            raise SceneError(f"{what}: not one finite texture coordinate per vertex", path)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    return DynamicMesh(name, pivot, v.astype(np.float32), t.astype(np.int32), m.astype(np.int32),
+                       n.astype(np.float32), None if uv is None else uv.astype(np.float32))
 
 
 def _checked_materials(path, materials, notes) -> list:

@@ -131,6 +131,30 @@ class Sky:
 
 
 @dataclass(frozen=True)
+class DynamicMesh:
+    """A mesh of the file marked dynamic (`voxbake bake --dynamic NODE`):
+    it moves at run time, so it is not baked: no lightmap, no shadow, no
+    light bounced off it; a viewer lights it from the irradiance probes.
+    name: the node's; pivot (3,) float64 its world position (where a
+    viewer moves it from); vertices (nv, 3) float32 in world space;
+    triangles (nt, 3) int32; material_ids (nt,) int32 into the scene's
+    materials; normals (nv, 3) float32 unit; uvs (nv, 2) float32 or None."""
+    name: str
+    pivot: np.ndarray
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material_ids: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray | None = None
+
+    @property
+    def radius(self) -> float:
+        """The largest distance of a vertex from the pivot."""
+        d = self.vertices.astype(np.float64) - self.pivot
+        return float(np.sqrt((d * d).sum(axis=1).max())) if len(d) else 0.0
+
+
+@dataclass(frozen=True)
 class Scene:
     """Triangles and what they are made of.
 
@@ -148,6 +172,7 @@ class Scene:
     sky: Sky | None = None
     path: str = ""
     warnings: tuple = field(default=())
+    dynamic: tuple = ()   # DynamicMesh: the file's moving meshes, not part of the bake
 
     # -- flat material arrays for kernels ----------------------------------
     @property
