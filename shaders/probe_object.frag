@@ -1,7 +1,7 @@
 #version 330 core
 // A moving object lit by the bake's irradiance probes, shaded from one irradiance map over its
-// normals that the CPU made (viewer/objects.py), read bilinearly at the pixel's normal, the
-// octahedral map's edges folded as the octahedron joins them: for an object no larger than a
+// normals that the CPU made (viewer/objects.py), read bilinearly at the pixel's normal across a
+// border that folds the octahedral map's edges as the octahedron joins them: for an object no larger than a
 // probe cell its probes blended at its centre (baker/probes/sample.py: object_map); for a larger
 // sphere the eight-probe sum of probes/sample.py's interpolate at each of the map's normals'
 // points on it (sphere_map: a sphere's point is a function of its normal). The eight-probe sum
@@ -9,7 +9,7 @@
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
-uniform sampler2D u_object_map;   // the object's irradiance map, u_map_size squared RGB32F
+uniform sampler2D u_object_map;   // the object's irradiance map, (u_map_size + 2) squared RGB32F, bordered
 uniform int u_map_size;
 uniform vec3 u_albedo;
 uniform float u_exposure;
@@ -30,25 +30,11 @@ vec2 oct_uv(vec3 d) {
     return 0.5 * (p + 1.0);
 }
 
-ivec2 wrap(int row, int col, int size) {
-    bool out_r = row < 0 || row >= size, out_c = col < 0 || col >= size;
-    int r = (out_c && !out_r) ? size - 1 - row : row;
-    int c = (out_r && !out_c) ? size - 1 - col : col;
-    if (out_r) r = row < 0 ? 0 : size - 1;
-    if (out_c) c = col < 0 ? 0 : size - 1;
-    if (out_r && out_c) { r = row < 0 ? size - 1 : 0; c = col < 0 ? size - 1 : 0; }
-    return ivec2(r, c);
-}
-
 vec3 object_irradiance(vec3 n) {
-    int size = u_map_size;
-    vec2 xy = oct_uv(n) * float(size) - 0.5;
-    vec2 f = xy - floor(xy);
-    int c0 = int(floor(xy.x)), r0 = int(floor(xy.y));
-    ivec2 a = wrap(r0, c0, size), b = wrap(r0, c0 + 1, size), c = wrap(r0 + 1, c0, size), d = wrap(r0 + 1, c0 + 1, size);
-    vec3 ta = texelFetch(u_object_map, a.yx, 0).rgb, tb = texelFetch(u_object_map, b.yx, 0).rgb;
-    vec3 tc = texelFetch(u_object_map, c.yx, 0).rgb, td = texelFetch(u_object_map, d.yx, 0).rgb;
-    return mix(mix(ta, tb, f.x), mix(tc, td, f.x), f.y);
+    // the map has a one-texel border across its folds (viewer/objects.py bordered): the GPU's bilinear
+    // read is the octahedron's, one fetch where four with the folds worked out here cost llvmpipe more
+    float size = float(u_map_size);
+    return texture(u_object_map, (oct_uv(n) * size + 1.0) / (size + 2.0)).rgb;
 }
 
 void main() {

@@ -653,3 +653,28 @@ def test_the_path_traced_reference_counts_the_sun_at_the_point(make_scene):
     assert np.allclose(e, 3.0 * np.maximum(CUBE_NORMALS @ -sun, 0)[:, None], atol=1e-9)
     shade = (np.tan(np.pi / 3) * 0.5, 0.5, 0.0)   # 0.5 under the blocker's centre along the sun
     assert (path_traced_irradiance(prepared, shade, CUBE_NORMALS, 256, 1) == 0).all()
+
+
+def test_a_moving_sphere_reads_a_coarser_map_until_it_stops(cornell, gl):
+    """In the window (interactive) a large sphere's map is MOVING_MAP wide
+    the frames it moves and SURFACE_MAP wide the first frame it stands
+    still; a snapshot always reads the full map. The border the GPU's
+    bilinear filter reads holds each fold's mirror texels."""
+    from viewer.objects import MOVING_MAP, SURFACE_MAP, ProbeObjects, Sphere, bordered
+    bake = bake_scene(cornell, small(probe_spacing=0.06)).bake
+    r = 0.09
+    a, b = Sphere((0.28, 0.40, 0.28), r), Sphere((0.29, 0.40, 0.28), r)
+    window = ProbeObjects(gl, bake, interactive=True)
+    sizes = [window._object_map(0, s)[0] for s in (a, b, b, a, a)]
+    assert sizes == [SURFACE_MAP, MOVING_MAP, SURFACE_MAP, MOVING_MAP, SURFACE_MAP]
+    window.release()
+    still = ProbeObjects(gl, bake)
+    assert [still._object_map(0, s)[0] for s in (a, b, a)] == [SURFACE_MAP] * 3
+    still.release()
+    m = np.arange(4 * 4 * 3, dtype=np.float32).reshape(4, 4, 3)
+    out = bordered(m)
+    from baker.probes.sample import _wrap
+    for row in range(-1, 5):
+        for col in range(-1, 5):
+            rr, cc = _wrap(np.array([row]), np.array([col]), 4)
+            assert (out[row + 1, col + 1] == m[rr[0], cc[0]]).all(), (row, col)

@@ -21,6 +21,7 @@ import numpy as np
 
 WIDTH = 4096   # texels per row of the probe view's packed SH texture (shaders/probe_grid.frag)
 SURFACE_MAP = 128   # texels a side of a large sphere's map: its mean is the per-pixel sum's within 0.01% (64: 0.5%)
+MOVING_MAP = 64     # ... while it moves in the window (0.5 ms to make against 2.0-2.3), the full map once it stops
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,20 @@ def probe_seen(grid, center, radius, bvh) -> np.ndarray:
     return seen.reshape(-1)
 
 
+def bordered(m) -> np.ndarray:
+    """(s + 2, s + 2, 3) float32: an octahedral map (s, s, 3) with a
+    one-texel border that repeats the texels across each fold (the edge
+    texels' mirror images, the opposite corners: probes/sample._wrap), so
+    that the GPU's own bilinear filter reads it as the octahedron joins."""
+    m = np.asarray(m, np.float32)
+    out = np.empty((m.shape[0] + 2, m.shape[1] + 2, 3), np.float32)
+    out[1:-1, 1:-1] = m
+    out[0, 1:-1], out[-1, 1:-1] = m[0, ::-1], m[-1, ::-1]
+    out[1:-1, 0], out[1:-1, -1] = m[::-1, 0], m[::-1, -1]
+    out[0, 0], out[0, -1], out[-1, 0], out[-1, -1] = m[-1, -1], m[-1, 0], m[0, -1], m[0, 0]
+    return out
+
+
 def moderngl_triangles():
     import moderngl
     return moderngl.TRIANGLES
@@ -106,7 +121,7 @@ def _packed(values: np.ndarray, channels: int) -> np.ndarray:
 class ProbeObjects:
     """Draws spheres lit by a bake's probes into the bound framebuffer."""
 
-    def __init__(self, ctx, bake):
+    def __init__(self, ctx, bake, interactive=False):
         from baker.errors import VoxgiError
         from baker.scene.prepared import prepare
         if bake.probes is None:
@@ -115,7 +130,9 @@ class ProbeObjects:
         self.grid = bake.probes
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
-        self.maps = {}   # (kind, i) -> [side, texture, (centre, radius) it holds]
+        self.maps = {}   # (kind, i, side) -> [texture, (centre, radius) it holds]
+        self.shown = {}  # (kind, i) -> (side, (centre, radius)) of the map drawn last
+        self.interactive = interactive   # the window: a coarser map while a large sphere moves
         self.bvh = prepare(bake.scene).bvh.arrays
 
     def _program(self, tonemap):
@@ -144,40 +161,50 @@ class ProbeObjects:
             vao.render(moderngl_triangles())
 
     def _object_map(self, i, s):
-        """(side, texture): the sphere's irradiance over its normals. No
-        larger than a probe cell: its probes blended at its centre
-        (object_map, the probes' map size); larger: the per-point sum at
-        each of SURFACE_MAP squared normals' points (sphere_map), its
-        probes masked by what its centre sees. The i-th object of each
-        kind has one texture for the viewer's life, rewritten when it
-        moves. The map is made on the CPU: a GPU pass into a texture the
-        same frame reads made llvmpipe stop and finish it (8 ms a frame
-        while an object moved, against 2 ms here)."""
+        """(side, texture): the sphere's irradiance over its normals, with a
+        one-texel border (bordered) for the GPU's bilinear read. No larger
+        than a probe cell: its probes blended at its centre (object_map,
+        the probes' map size); larger: the per-point sum at each of
+        SURFACE_MAP squared normals' points (sphere_map), its probes masked
+        by what its centre sees; in the window MOVING_MAP squared while it
+        moves, the full map the first frame it stands still. Each map
+        texture lives as long as the viewer, rewritten when the object
+        moves (a texture made and freed each frame stalled llvmpipe). The
+        map is made on the CPU: a GPU pass into a texture the same frame
+        reads made llvmpipe stop and finish it (8 ms a frame while an
+        object moved, against 2 ms here)."""
         import moderngl
         from baker.probes.sample import object_map, sphere_map
         kind = "blended" if s.radius <= self.grid.spacing else "surface"
         key = (tuple(s.center), float(s.radius))
-        if (kind, i) not in self.maps:
-            size = self.grid.irradiance.shape[1] if kind == "blended" else SURFACE_MAP
-            tex = self.ctx.texture((size, size), 3, dtype="f4")
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self.maps[(kind, i)] = [size, tex, None]
-        size, tex, held = self.maps[(kind, i)]
+        if kind == "blended":
+            size = self.grid.irradiance.shape[1]
+        else:
+            last = self.shown.get((kind, i))
+            moving = self.interactive and last is not None and last[1] != key
+            size = MOVING_MAP if moving else SURFACE_MAP
+        if (kind, i, size) not in self.maps:
+            tex = self.ctx.texture((size + 2, size + 2), 3, dtype="f4")
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False
+            self.maps[(kind, i, size)] = [tex, None]
+        tex, held = self.maps[(kind, i, size)]
         if held != key:
             if kind == "blended":
                 m = object_map(self.grid, s.center, self.bvh)
             else:
                 m = sphere_map(self.grid, s.center, s.radius, probe_seen(self.grid, s.center, s.radius, self.bvh),
                                size)
-            tex.write(np.ascontiguousarray(m, np.float32).tobytes())
-            self.maps[(kind, i)][2] = key
+            tex.write(bordered(m).tobytes())
+            self.maps[(kind, i, size)][1] = key
+        self.shown[(kind, i)] = (size, key)
         return size, tex
 
     def release(self):
         for prog, vao in self.programs.values():
             vao.release()
             prog.release()
-        for obj in (self.vbo, *(m[1] for m in self.maps.values())):
+        for obj in (self.vbo, *(m[0] for m in self.maps.values())):
             obj.release()
 
 

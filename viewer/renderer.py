@@ -60,7 +60,7 @@ class Renderer:
     """Draws a bake: `render(camera, width, height, ...)` into the bound
     framebuffer."""
 
-    def __init__(self, ctx, bake):
+    def __init__(self, ctx, bake, interactive=False):
         self.ctx = ctx
         self.bake = bake
         scene = bake.scene
@@ -88,6 +88,7 @@ class Renderer:
                 self.emit_textures[i] = tex
         self.draws = draw_groups(bake)
         self.probe_objects = None   # objects.ProbeObjects, made when an object is first drawn
+        self.interactive = interactive   # the window (objects move between frames), not a snapshot
         self.probe_view = None      # objects.ProbeGridView, made when the probes are first shown
         self.dynamic = None         # objects.DynamicMeshes, made when the bake's dynamic meshes are first drawn
         self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
@@ -194,7 +195,7 @@ class Renderer:
         if spheres:   # (after the glass: an object behind a pane is not tinted by it)
             if self.probe_objects is None:
                 from .objects import ProbeObjects
-                self.probe_objects = ProbeObjects(ctx, self.bake)
+                self.probe_objects = ProbeObjects(ctx, self.bake, self.interactive)
             self.probe_objects.draw(vp, spheres, tonemap, exposure)
         if self.bake.scene.dynamic and self.bake.probes is not None and mode == "lightmap":
             if self.dynamic is None:

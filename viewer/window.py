@@ -350,7 +350,7 @@ class Walkthrough:
             self._callbacks(glfw, win)
             ctx = moderngl.create_context()
             from .renderer import Renderer
-            renderer = Renderer(ctx, self.bake)
+            renderer = Renderer(ctx, self.bake, interactive=True)
             cam0 = self.start_camera if self.start_camera is not None else camera_for(self.bake.scene, None)
             lo, hi = self.bake.scene.bounds()
             camera = FlyCamera.from_camera(cam0, speed=0.15 * float(np.linalg.norm(hi - lo)))
