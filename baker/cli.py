@@ -167,7 +167,7 @@ def cmd_bake(args):
         preview_vpls=args.preview_vpls, texel_samples=args.texel_samples, texel_interpolate=args.texel_interpolate,
         texel_indirect_stride=args.texel_indirect_stride, texel_gather=args.texel_gather,
         texel_gather_spacing=args.texel_gather_spacing, probe_spacing=args.probe_spacing,
-        probe_copies=0 if args.no_probes else None, **_solver_overrides(args)))
+        probe_rays=0 if args.no_probes else None, **_solver_overrides(args)))
     checkpoint_at = _check_cluster(args)
     stats = Stats("bake")
     with threads(args.threads), _executor(args) as executor:

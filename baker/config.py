@@ -146,26 +146,26 @@ MAX_INDIRECT_STRIDE = 16
 MAX_TEXELS_ACROSS = 4096
 
 
-MAX_PROBE_COPIES = 4096   # rotated icosahedra per probe at most (49,152 rays)
+MAX_PROBE_RAYS = 49_152   # rays per probe at most
 
 
 @dataclass(frozen=True)
 class ProbeConfig:
     """The irradiance probe grid of a bake (probes/): spacing between
     probes in scene units (None: about `budget` probes over the scene's
-    bounds); copies: rotated icosahedra of 12 rays each per probe (0: no
-    probes)."""
+    bounds); rays: the directions each probe gathers along (a spherical
+    Fibonacci set; 0: no probes)."""
     spacing: float | None = None
     budget: int = 2048
-    copies: int = 64
+    rays: int = 768
 
     def __post_init__(self):
         if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing > 0):
             raise ConfigError(f"the probe spacing must be a positive number of scene units (got {self.spacing})")
         if not 1 <= self.budget <= 1 << 20:
             raise ConfigError(f"the probe budget must lie in [1, {1 << 20}] (got {self.budget})")
-        if not 0 <= self.copies <= MAX_PROBE_COPIES:
-            raise ConfigError(f"probe ray sets must lie in [0, {MAX_PROBE_COPIES}] (got {self.copies})")
+        if not 0 <= self.rays <= MAX_PROBE_RAYS:
+            raise ConfigError(f"probe rays must lie in [0, {MAX_PROBE_RAYS}] (got {self.rays})")
 
 
 @dataclass(frozen=True)

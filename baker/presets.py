@@ -69,7 +69,7 @@ PRESETS = {p.name: p for p in (
                         max_bounces=16, gather_rays=64),
            LightcutsConfig(direct_vpls=4096, sky_vpls=256, epsilon=0.05, cap=300, gather=64),
            texels="voxels", texel_epsilon=0.05, texel_samples=1, texel_contrast=0.1, texel_interpolate=0.0,
-           uv="per-triangle", probes=ProbeConfig(budget=256, copies=16)),
+           uv="per-triangle", probes=ProbeConfig(budget=256, rays=192)),
     Preset("default", "direct light by lightcuts at every texel, bounced light gathered from the voxels, shadow edges "
                       "anti-aliased",
            SolverConfig(surface_cells=25_000, radius=6, photons_per_voxel=160, photon_smoothing=2.0, tolerance=1e-2,
@@ -77,7 +77,7 @@ PRESETS = {p.name: p for p in (
            LightcutsConfig(direct_vpls=32_768, sky_vpls=1024, epsilon=0.02, cap=1000, gather=256),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=2, texel_contrast=0.2, texel_interpolate=0.2,
            texel_indirect_stride=2, texel_indirect_cap=1000, texel_gather=256, texel_cap=200,
-           texel_gather_spacing=1.0, texels_across=64, probes=ProbeConfig(budget=2048, copies=64)),
+           texel_gather_spacing=1.0, texels_across=64, probes=ProbeConfig(budget=2048, rays=768)),
     Preset("high", "finer voxels, more photons, gather rays and VPLs; every texel shaded",
            SolverConfig(surface_cells=100_000, radius=12, photons_per_voxel=128, photon_smoothing=0.0,
                         tolerance=1e-3, max_bounces=128, gather_rays=1024),
@@ -85,7 +85,7 @@ PRESETS = {p.name: p for p in (
                            gather_spacing=2.0),
            texels="lightcuts", texel_epsilon=0.01, texel_samples=4, texel_contrast=0.1, texel_interpolate=0.0,
            texel_indirect_stride=2, texel_indirect_cap=8000, texel_gather=1024, texel_gather_spacing=2.0,
-           texels_across=128, probes=ProbeConfig(budget=8192, copies=256)),
+           texels_across=128, probes=ProbeConfig(budget=8192, rays=3072)),
 )}
 
 
@@ -122,10 +122,10 @@ def lightcuts_config(name: str = "default", **overrides) -> LightcutsConfig:
 def bake_config(name="default", uv=None, texel_density=None, texels=None, epsilon=None,
                 direct_vpls=None, preview_vpls=65_536, texel_samples=None, texel_contrast=None,
                 texel_interpolate=None, texel_indirect_stride=None, texel_gather=None, texel_gather_spacing=None,
-                texels_across=None, probe_spacing=None, probe_copies=None, **solver_overrides) -> BakeConfig:
+                texels_across=None, probe_spacing=None, probe_rays=None, **solver_overrides) -> BakeConfig:
     """A preset's bake settings; every None takes the preset's value.
     texels: 'voxels' or 'lightcuts'; epsilon: the texels' lightcuts error
-    bound; probe_spacing, probe_copies: the probe grid's (ProbeConfig);
+    bound; probe_spacing, probe_rays: the probe grid's (ProbeConfig);
     the rest as config.BakeConfig, solver_overrides as solver_config."""
     p = preset(name)
     uv = uv or p.uv
@@ -150,7 +150,7 @@ def bake_config(name="default", uv=None, texel_density=None, texels=None, epsilo
         preview_lightcuts=lightcuts_config(name, seed=solver.seed),
         texels_across=int(texels_across if texels_across is not None else p.texels_across),
         probes=replace(p.probes, spacing=probe_spacing if probe_spacing is not None else p.probes.spacing,
-                       copies=int(probe_copies if probe_copies is not None else p.probes.copies)))
+                       rays=int(probe_rays if probe_rays is not None else p.probes.rays)))
 
 
 def help_table() -> str:
@@ -172,5 +172,5 @@ def help_table() -> str:
                        + (f"bounced by {p.texel_gather} gather rays)" if p.texel_gather else
                           f"cut <= {p.texel_indirect_cap:,})")
                        if p.texels == "lightcuts" else "")
-                    + f"\n           about {p.probes.budget:,} irradiance probes of {12 * p.probes.copies:,} rays")
+                    + f"\n           about {p.probes.budget:,} irradiance probes of {p.probes.rays:,} rays")
     return "presets:\n" + "\n".join(rows)

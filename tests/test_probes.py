@@ -27,20 +27,28 @@ def small(**kw):
     return bake_config("default", resolution=24, photons=100_000, direct_vpls=2048, texel_density=12, **kw)
 
 
-def test_the_ray_set_projects_order_two_light_exactly():
-    """Rotated icosahedra are spherical 5-designs: the projection of any
-    order-2 radiance is its coefficients, and a constant radiance L gives
-    the irradiance pi L for every normal, to rounding."""
-    d = ray_set(5, seed=3)
-    assert d.shape == (60, 3) and np.allclose(np.linalg.norm(d, axis=1), 1)
-    y = sh_basis_np(d)
-    coeffs = np.random.default_rng(0).normal(size=9)
-    f = y @ coeffs
-    projected = 4 * np.pi / len(d) * (y * f[:, None]).sum(axis=0)
-    assert np.allclose(projected, coeffs, atol=1e-12)
-    const = 4 * np.pi / len(d) * y.sum(axis=0) * 0.7   # radiance 0.7 everywhere
-    e = probe_irradiance_sh(np.repeat(np.stack([const] * 3, axis=1)[None], len(CUBE_NORMALS), 0), CUBE_NORMALS)
-    assert np.allclose(e, np.pi * 0.7, rtol=1e-12)
+def test_the_ray_set_integrates_smooth_light_and_the_cosine_closely():
+    """The probes' rays (a spherical Fibonacci set): the projection of any
+    order-2 radiance is its coefficients within 5e-4 at 768 rays (3e-3 at
+    192), and a constant radiance L gives the irradiance pi L for every
+    normal within 0.1% (0.5% at 192): the clamped cosine's kink, which
+    random directions integrate to a per cent at 768 (1.0% here for 64
+    randomly turned icosahedra)."""
+    rng = np.random.default_rng(0)
+    normals = rng.normal(size=(4000, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    for count, sh_tol, cos_tol in ((768, 5e-4, 1e-3), (192, 3e-3, 5e-3)):
+        d = ray_set(count)
+        assert d.shape == (count, 3) and np.allclose(np.linalg.norm(d, axis=1), 1)
+        y = sh_basis_np(d)
+        coeffs = rng.normal(size=9)
+        projected = 4 * np.pi / len(d) * (y * (y @ coeffs)[:, None]).sum(axis=0)
+        assert np.abs(projected - coeffs).max() < sh_tol * np.abs(coeffs).max()
+        e = 4 * np.pi / len(d) * np.maximum(normals @ d.T, 0).sum(axis=1) * 0.7
+        assert np.abs(e / (np.pi * 0.7) - 1).max() < cos_tol
+        const = 4 * np.pi / len(d) * y.sum(axis=0) * 0.7   # radiance 0.7 everywhere, through the SH
+        e = probe_irradiance_sh(np.repeat(np.stack([const] * 3, axis=1)[None], len(CUBE_NORMALS), 0), CUBE_NORMALS)
+        assert np.allclose(e, np.pi * 0.7, rtol=sh_tol * 10)
     assert SH_BAND[0] == math.pi
 
 
@@ -253,7 +261,7 @@ def test_the_map_reads_the_probe_s_own_irradiance_between_its_texels(cornell, mo
         return d
     monkeypatch.setattr(gather, "texel_directions", at_the_normals)
     exact_grid = gather.bake_probes(prepared, result.solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget),
-                                    cfg.probes.copies, cfg.solver.seed)
+                                    cfg.probes.rays, cfg.solver.seed)
     n = len(CUBE_NORMALS)
     exact = exact_grid.irradiance[:, 0, :n].sum(axis=2)
     read = np.stack([irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
@@ -269,9 +277,11 @@ def test_walkthrough_probes_match_the_path_tracer():
     """The walkthrough at default (three rooms, four lamps hung under the
     ceiling, a sun through a window): eight probes that see no surface
     nearer than four voxel cells, 14 normals each, against the path
-    tracer's irradiance with the sun counted at the point. A regression
-    guard at today's figures (median 1.6%, 97% within 5%, at most 8.6%):
-    the issue's 3% is met for most normals, not all."""
+    tracer's irradiance with the sun counted at the point (65,536
+    directions: 8,192 x 4 paths are themselves off by up to 4-8% beside
+    a lamp). A regression guard at today's figures (median 1.0%, 96% within
+    3%, all within 5%, at most 4.6%): the issue's 3% is met for most
+    normals, not all."""
     from baker.presets import bake_config
     from baker.probes import bake_probes
     from baker.scene import load_scene
@@ -282,7 +292,7 @@ def test_walkthrough_probes_match_the_path_tracer():
     cfg = bake_config("default")
     solution = solve(prepared, cfg.solver)
     lo, hi = scene.bounds()
-    g = bake_probes(prepared, solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget), cfg.probes.copies,
+    g = bake_probes(prepared, solution, grid_for(lo, hi, cfg.probes.spacing, cfg.probes.budget), cfg.probes.rays,
                     cfg.solver.seed)
     cell = float(solution.voxels.cell_size)
     pos = g.positions()
@@ -291,12 +301,12 @@ def test_walkthrough_probes_match_the_path_tracer():
     n = len(CUBE_NORMALS)
     errors = []
     for i in picked:
-        want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 8192, 4).sum(axis=1)
+        want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 65536, 1).sum(axis=1)
         got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
         errors.append(np.abs(got - want) / (want + 0.02 * want.max()))
     errors = np.concatenate(errors)
-    assert np.median(errors) < 0.025 and np.mean(errors < 0.05) > 0.9 and errors.max() < 0.12, \
-        (np.median(errors), np.mean(errors < 0.05), errors.max())
+    assert np.median(errors) < 0.015 and np.mean(errors < 0.03) > 0.92 and np.mean(errors < 0.05) > 0.97 \
+        and errors.max() < 0.07, (np.median(errors), np.mean(errors < 0.03), np.mean(errors < 0.05), errors.max())
 
 
 @pytest.fixture(scope="module")
@@ -614,7 +624,7 @@ def test_the_probe_view_from_the_command_line(cornell, tmp_path):
     from tests.conftest import cli
     with_probes, without = tmp_path / "c.glb", tmp_path / "none.glb"
     write_bake(str(with_probes), bake_scene(cornell, small(probe_spacing=0.1)).bake)
-    write_bake(str(without), bake_scene(cornell, small(probe_copies=0)).bake)
+    write_bake(str(without), bake_scene(cornell, small(probe_rays=0)).bake)
     shots = {}
     for name, extra in (("probes", ["--probes"]), ("plain", [])):
         out = tmp_path / f"{name}.png"

@@ -179,7 +179,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
         plan = plan_texels(scene, None, config.texel_density, uv=config.uv)
         check_texel_budget(scene, plan.texel_size, plan.uv, budget, f"--texel-density {config.texel_density:g}")
     probe_grid = None
-    if config.probes.copies:   # a grid over the limit is refused before any work
+    if config.probes.rays:   # a grid over the limit is refused before any work
         lo, hi = scene.bounds()
         probe_grid = grid_for(lo, hi, config.probes.spacing, config.probes.budget)
     with stats.stage("bvh"):
@@ -200,7 +200,7 @@ def _bake(scene, config, stats, progress, bvh, surfaces, executor, checkpoint_at
     probes = None
     if probe_grid is not None:
         with stats.stage("probes"), bar(int(np.prod(probe_grid[2])), "probes", "probe", progress) as pbar:
-            probes = bake_probes(prepared, solution, probe_grid, config.probes.copies, config.solver.seed, executor,
+            probes = bake_probes(prepared, solution, probe_grid, config.probes.rays, config.solver.seed, executor,
                                  pbar.update)
         stats.count(probes=probes.count, probes_valid=int(probes.valid.sum()), probe_spacing=probes.spacing,
                     probe_rays=probes.rays)

@@ -9,10 +9,10 @@ they hit, through thin glass tinted) where they land and the sky where
 they escape; the area emitters are sampled (EMITTER_SAMPLES points by
 power, stratified, each behind a shadow ray) and, with the punctual
 lights and the sun, added as the deltas they are (a small lamp seen by a
-few uniform rays would be noise). The rays are rotated copies of the
-icosahedron's 12 vertices: each copy is a spherical 5-design, so the
-projection of any light of order 2 or less (a furnace's constant
-included) is exact, not a Monte-Carlo estimate.
+few uniform rays would be noise). The rays are a spherical Fibonacci
+set (ray_set), the same for every probe: quasi-uniform, so the sums
+over them converge far faster than a Monte-Carlo estimate (a constant
+radiance's irradiance within 0.07% at 768 rays).
 
 Order 2 cannot hold a lamp's irradiance: a delta's order-2 irradiance
 overshoots by 37% facing it and is 37% of the peak facing away. So each
@@ -58,7 +58,6 @@ EMITTER_SAMPLES = 256   # points on the area emitters per probe
 DEPTH_SUB = 2     # rays per texel per side for the distance map
 BACKFACE_INVALID = 0.25   # share of backface hits that makes a probe invalid
 MAX_PROBES = 1 << 20      # probes in a grid at most (a flag that asks more is refused before any work)
-ICOSA = 12
 MAX_DIST = 4.0   # spacings: the distance map's rays are capped here
 # The octahedral maps' frame: a map direction is MAP_FRAME @ d for a scene direction d, a turn of 67.5 degrees
 # about the scene's z. The octahedral map is singular at its vertices and folds along the square's edges; a
@@ -132,30 +131,23 @@ def grid_for(lo, hi, spacing=None, budget=4096):
     return origin, spacing, dims
 
 
-def icosahedron() -> np.ndarray:
-    g = (1 + 5 ** 0.5) / 2
-    v = []
-    for a in (-1.0, 1.0):
-        for b in (-g, g):
-            v += [(0.0, a, b), (a, b, 0.0), (b, 0.0, a)]
-    v = np.array(v)
-    return v / np.linalg.norm(v, axis=1)[:, None]
-
-
-def ray_set(copies: int, seed: int = 0) -> np.ndarray:
-    """(12 copies, 3) unit directions: the icosahedron's vertices under
-    `copies` fixed rotations (seeded quaternions, uniform on SO(3)); the
-    union of spherical 5-designs is one, so it integrates every
-    polynomial of degree 5 or less over the sphere exactly."""
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9e0be]))
-    q = rng.normal(size=(copies, 4))
-    q /= np.linalg.norm(q, axis=1)[:, None]
-    w, x, y, z = q.T
-    rot = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)   # (c, 3, 3)
-    return np.einsum("cij,vj->cvi", rot, icosahedron()).reshape(-1, 3)
+def ray_set(count: int) -> np.ndarray:
+    """(count, 3) unit directions: a spherical Fibonacci set (equal areas
+    by z, the golden angle around y). Quasi-uniform, so a probe's
+    irradiance, whose integrand has the cosine's kink at the horizon and
+    the room's edges, converges much faster than over random directions:
+    against the path tracer in the walkthrough, 768 of them put 99% of
+    probe readings within 3% (max 5.3%) where 64 randomly turned
+    icosahedra (a union of spherical 5-designs, exact for order-2 SH
+    only) put 90% (max 8.9-16%, by the seed). A constant radiance's
+    irradiance is within 0.07% for every normal (768 rays) and its order-2
+    SH within 2e-4 (192: 0.4% and 2e-3). The same set for every probe and
+    seed: nothing in it is random."""
+    i = np.arange(int(count)) + 0.5
+    y = 1.0 - 2.0 * i / count
+    phi = 2.0 * math.pi * i / ((1.0 + math.sqrt(5.0)) / 2.0)
+    r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
+    return np.ascontiguousarray(np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=1))
 
 
 @njit(cache=True, inline="always")
@@ -505,9 +497,9 @@ def probe_block(block: ProbeBlock, shot: ProbeShot) -> ProbePart:
     return ProbePart(sh, irr, depth, backs)
 
 
-def bake_probes(prepared, solution, grid, copies: int, seed: int = 0, executor=None, progress=None) -> ProbeGrid:
+def bake_probes(prepared, solution, grid, rays: int, seed: int = 0, executor=None, progress=None) -> ProbeGrid:
     """The probes of `grid` ((origin, spacing, dims): grid_for) gathered
-    from the solution with 12 x copies rays each."""
+    from the solution with `rays` rays each (ray_set)."""
     from ..solve.gather import GatherVoxels
     from ..tasks import run_tasks
     origin, spacing, dims = grid
@@ -515,7 +507,7 @@ def bake_probes(prepared, solution, grid, copies: int, seed: int = 0, executor=N
     vox = solution.voxels
     bounced = np.ascontiguousarray(solution.radiosity - vox.emission, np.float64)   # the emitters: sampled
     shot = ProbeShot(prepared.bvh.arrays, prepared.surfaces.arrays, GatherVoxels.of(prepared, vox),
-                     np.maximum(bounced, 0.0), ray_set(int(copies), seed), texel_directions(IRR),
+                     np.maximum(bounced, 0.0), ray_set(int(rays)), texel_directions(IRR),
                      texel_directions(DEPTH, DEPTH_SUB), MAX_DIST * spacing, EMITTER_SAMPLES, int(seed))
     blocks = [ProbeBlock(j, a, points[a:a + PROBE_BLOCK]) for j, a in enumerate(range(0, len(points), PROBE_BLOCK))]
 
@@ -527,7 +519,7 @@ def bake_probes(prepared, solution, grid, copies: int, seed: int = 0, executor=N
     backs = np.concatenate([p.backs for p in parts])
     return ProbeGrid(np.asarray(origin, np.float64), float(spacing), np.asarray(dims, np.int64),
                      sh.astype(np.float32), half_exact(np.maximum(irr, 0.0)), depth.astype(np.float32),
-                     backs < BACKFACE_INVALID, 12 * int(copies))
+                     backs < BACKFACE_INVALID, int(rays))
 
 
 HALF_MAX = 60000.0
