@@ -119,6 +119,22 @@ def test_bad_dynamic_names_are_refused_in_one_line(furnace, names, message):
     assert "\n" not in e.value.one_line() and "furnace_ball.glb" in e.value.one_line()
 
 
+def test_a_dynamic_node_instanced_too_often_is_refused(tmp_path):
+    """A node graph that shares its children instances a dynamic node
+    2^13 times: refused in one line before the meshes are gathered (a bake
+    holds at most MAX_DYNAMIC)."""
+    from baker.scene.gltf_read import MAX_DYNAMIC
+    from tests.hostile import triangle_doc, write_gltf
+    doc = triangle_doc()
+    doc["nodes"] = [{"mesh": 0, "name": "leaf"}] + [{"children": [k, k]} for k in range(13)]
+    doc["scenes"] = [{"nodes": [13, 0]}]
+    path = write_gltf(tmp_path / "shared.gltf", doc)
+    assert 2 ** 13 > MAX_DYNAMIC
+    with pytest.raises(SceneError, match=f"more than {MAX_DYNAMIC} instances") as e:
+        load_scene(path, dynamic=("leaf",))
+    assert "\n" not in e.value.one_line()
+
+
 def test_the_bake_command_refuses_bad_dynamic_flags(furnace, tmp_path):
     from tests.hostile import write_obj
     out = tmp_path / "o.glb"

@@ -360,14 +360,12 @@ def read_bake(path) -> Bake:
     return Bake(scene, uv1.reshape(-1, 3, 2), page, pages.astype(np.float32), scale, meta, vpls, probes)
 
 
-MAX_DYNAMIC = 4096   # dynamic meshes a bake may list
-
-
 def _dynamic_entries(entry, doc, path) -> tuple:
     """The node indices of the bake's dynamic meshes (root `dynamic`:
     [{"node": i, "name": s}]), each checked: in range, once."""
     if entry is None:
         return ()
+    from ..scene.gltf_read import MAX_DYNAMIC
     n_nodes = len(doc.get("nodes") or [])
     try:
         if not isinstance(entry, list) or not 0 < len(entry) <= MAX_DYNAMIC:

@@ -23,6 +23,7 @@ _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "M
 _INDEX_TYPES = (5121, 5123, 5125)  # glTF 3.7.2.1: indices are unsigned integers
 LOAD_BYTES_PER_TRIANGLE = 600  # what a triangle costs through loading and clean-up (corners, normals, cuts)
 MAX_NODE_INSTANCES = 1_000_000  # a node graph sharing children can instance a mesh exponentially often
+MAX_DYNAMIC = 4096   # dynamic mesh instances (--dynamic) a scene, and so a bake file, may hold
 
 
 def _int(value, what, path, lo=0, hi=1 << 62):
@@ -182,6 +183,9 @@ def _world_nodes(doc, path, dynamic=frozenset()):
             raise SceneError(f"node {i}: its transform is not finite", path)
         if obj < 0 and i in dynamic:
             obj, objects = objects, objects + 1
+            if objects > MAX_DYNAMIC:
+                raise SceneError(f"more than {MAX_DYNAMIC} instances of --dynamic nodes (shared children "
+                                 f"repeated?)", path)
         yield i, world, obj
         children = nodes[i].children or []
         for c in children:
