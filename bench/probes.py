@@ -9,7 +9,9 @@ stage alone (bake_probes, timed twice, the faster kept), the grid, the
 share of valid probes and the bytes the probe block adds to the bake
 file. With --accuracy: at default, the irradiance of probes clear of
 surfaces and of the grid interpolated at random points as clear, against
-the path tracer, for the 14 normals of a cube's faces and corners. With
+the path tracer, for the 14 normals of a cube's faces and corners (the
+points with the sun and punctual lights at the point, as the viewer
+lights objects). With
 --window: voxview's window under Xvfb (llvmpipe) at 1280x720
 on the scene's default bake, with and without a sphere dropped at the
 first frame, standing still or moved by the arrow keys every frame
@@ -196,7 +198,7 @@ def accuracy_rows(scenes):
     beside a lamp) for the 14 normals of a cube's faces and corners."""
     from baker.presets import bake_config
     from baker.probes import bake_probes, grid_for, interpolate
-    from baker.probes.sample import irradiance_map_at
+    from baker.probes.sample import irradiance_map_at, probe_lights
     from baker.render.irradiance import path_traced_irradiance
     from baker.scene import load_scene, prepare
     from baker.solve import solve
@@ -219,13 +221,14 @@ def accuracy_rows(scenes):
             want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 65536, 1).sum(axis=1)
             got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
             probe_err.append(_errors(got, want))
+        lights = probe_lights(g, prepared)   # the sun and punctual lights exact at the points, as the viewer has them
         candidates = lo + rng.random((40 * PICKED, 3)) * (hi - lo)
         points = candidates[_clear_points(prepared, candidates, cell)][:PICKED]
         point_err = []
         for p in points:
             want = path_traced_irradiance(prepared, p, CUBE_NORMALS, 65536, 1).sum(axis=1)
             got = interpolate(g, np.repeat(p[None], n, 0), CUBE_NORMALS, np.repeat(p[None], n, 0),
-                              prepared.bvh.arrays).sum(axis=1)
+                              prepared.bvh.arrays, lights).sum(axis=1)
             point_err.append(_errors(got, want))
         pe, qe = np.concatenate(probe_err), np.concatenate(point_err)
         rows.append([name, f"{cell:.4g}", len(probe_err), f"{100 * np.median(pe):.1f}%",

@@ -121,19 +121,22 @@ def _packed(values: np.ndarray, channels: int) -> np.ndarray:
 class ProbeObjects:
     """Draws spheres lit by a bake's probes into the bound framebuffer."""
 
-    def __init__(self, ctx, bake, interactive=False):
+    def __init__(self, ctx, bake, interactive=False, prepared=None):
         from baker.errors import VoxgiError
+        from baker.probes.sample import probe_lights
         from baker.scene.prepared import prepare
         if bake.probes is None:
             raise VoxgiError("the bake holds no irradiance probes: bake it again without --no-probes")
+        prepared = prepared if prepared is not None else prepare(bake.scene)
         self.ctx = ctx
         self.grid = bake.probes
+        self.lights = probe_lights(self.grid, prepared)   # the sun and punctual lights, exact at each point
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
         self.maps = {}   # (kind, i, side) -> [texture, (centre, radius) it holds]
         self.shown = {}  # (kind, i) -> (side, (centre, radius)) of the map drawn last
         self.interactive = interactive   # the window: a coarser map while a large sphere moves
-        self.bvh = prepare(bake.scene).bvh.arrays
+        self.bvh = prepared.bvh.arrays
 
     def _program(self, tonemap):
         key = bool(tonemap)
@@ -191,10 +194,10 @@ class ProbeObjects:
         tex, held = self.maps[(kind, i, size)]
         if held != key:
             if kind == "blended":
-                m = object_map(self.grid, s.center, self.bvh)
+                m = object_map(self.grid, s.center, self.bvh, self.lights)
             else:
                 m = sphere_map(self.grid, s.center, s.radius, probe_seen(self.grid, s.center, s.radius, self.bvh),
-                               size)
+                               size, self.lights)
             tex.write(bordered(m).tobytes())
             self.maps[(kind, i, size)][1] = key
         self.shown[(kind, i)] = (size, key)
@@ -216,16 +219,19 @@ class DynamicMeshes:
     from the centre of its bounds (probe_seen: a mesh beside a wall lit by
     its own side); the shader interpolates it over the triangles."""
 
-    def __init__(self, ctx, bake):
+    def __init__(self, ctx, bake, prepared=None):
         from baker.errors import VoxgiError
+        from baker.probes.sample import probe_lights
         from baker.scene.prepared import prepare
         from .renderer import material_texture
         if bake.probes is None:
             raise VoxgiError("the bake holds no irradiance probes to light its dynamic meshes")
+        prepared = prepared if prepared is not None else prepare(bake.scene)
         self.ctx = ctx
         self.grid = bake.probes
         self.materials = bake.scene.materials
-        self.bvh = prepare(bake.scene).bvh.arrays
+        self.bvh = prepared.bvh.arrays
+        self.lights = probe_lights(self.grid, prepared)
         self.meshes = []   # per mesh: dict of its buffers, groups and the offset its irradiance is for
         self.textures = {}
         self.programs = {}
@@ -268,7 +274,8 @@ class DynamicMeshes:
         e = self.meshes[i]
         off = np.asarray(offset, np.float64)
         seen = probe_seen(self.grid, e["center"] + off, e["radius"], self.bvh)
-        return points_irradiance(self.grid, e["mesh"].vertices.astype(np.float64) + off, e["mesh"].normals, seen)
+        return points_irradiance(self.grid, e["mesh"].vertices.astype(np.float64) + off, e["mesh"].normals, seen,
+                                 self.lights)
 
     def draw(self, vp, offsets, tonemap=True, exposure=1.0):
         """Every dynamic mesh, mesh i moved by offsets[i] (3,)."""

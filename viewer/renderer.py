@@ -89,11 +89,20 @@ class Renderer:
         self.draws = draw_groups(bake)
         self.probe_objects = None   # objects.ProbeObjects, made when an object is first drawn
         self.interactive = interactive   # the window (objects move between frames), not a snapshot
+        self._prepared = None
         self.probe_view = None      # objects.ProbeGridView, made when the probes are first shown
         self.dynamic = None         # objects.DynamicMeshes, made when the bake's dynamic meshes are first drawn
         self.sky_programs = {}   # tonemap -> (program, vertex array): the sky the bake was lit by, if any
         lo, hi = scene.bounds()
         self.extent = float(np.linalg.norm(hi - lo)) or 1.0
+
+    def prepared(self):
+        """The bake's scene prepared (its BVH for the moving objects' rays),
+        made once, on first use."""
+        if self._prepared is None:
+            from baker.scene.prepared import prepare
+            self._prepared = prepare(self.bake.scene)
+        return self._prepared
 
     def variant(self, mode, bicubic, tonemap, textured=False):
         """The program (and its vertex array) of one view, built on first use."""
@@ -195,12 +204,12 @@ class Renderer:
         if spheres:   # (after the glass: an object behind a pane is not tinted by it)
             if self.probe_objects is None:
                 from .objects import ProbeObjects
-                self.probe_objects = ProbeObjects(ctx, self.bake, self.interactive)
+                self.probe_objects = ProbeObjects(ctx, self.bake, self.interactive, self.prepared())
             self.probe_objects.draw(vp, spheres, tonemap, exposure)
         if self.bake.scene.dynamic and self.bake.probes is not None and mode == "lightmap":
             if self.dynamic is None:
                 from .objects import DynamicMeshes
-                self.dynamic = DynamicMeshes(ctx, self.bake)
+                self.dynamic = DynamicMeshes(ctx, self.bake, self.prepared())
             offsets = [(0.0, 0.0, 0.0)] * len(self.bake.scene.dynamic)
             for o in objects:
                 if isinstance(o, Placed):

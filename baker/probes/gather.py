@@ -320,32 +320,50 @@ def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, out)
             out[k, 3], out[k, 4], out[k, 5] = er * f * t0, eg * f * t1, eb * f * t2
             k += 1
     for li in range(surf.light_kind.shape[0]):
-        kind = surf.light_kind[li]
-        if kind == LIGHT_DIRECTIONAL:
-            dx, dy, dz = -surf.light_dir[li, 0], -surf.light_dir[li, 1], -surf.light_dir[li, 2]
-            dist = np.inf
-            e = 1.0
-        else:
-            dx = surf.light_pos[li, 0] - ox
-            dy = surf.light_pos[li, 1] - oy
-            dz = surf.light_pos[li, 2] - oz
-            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if dist <= 0.0:
-                continue
-            dx, dy, dz = dx / dist, dy / dist, dz / dist
-            e = 1.0 / (dist * dist)
-            if kind == LIGHT_SPOT:
-                e *= spot_falloff(-(dx * surf.light_dir[li, 0] + dy * surf.light_dir[li, 1]
-                                    + dz * surf.light_dir[li, 2]), surf.light_cones[li, 0], surf.light_cones[li, 1])
-        if e <= 0.0:
+        dx, dy, dz, r, g, b = punctual_delta(bvh, surf, stack, ox, oy, oz, li)
+        if r == 0.0 and g == 0.0 and b == 0.0:
             continue
-        t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist)
         out[k, 0], out[k, 1], out[k, 2] = dx, dy, dz
-        out[k, 3] = surf.light_intensity[li, 0] * e * t0
-        out[k, 4] = surf.light_intensity[li, 1] * e * t1
-        out[k, 5] = surf.light_intensity[li, 2] * e * t2
+        out[k, 3], out[k, 4], out[k, 5] = r, g, b
         k += 1
     return k
+
+
+@njit(cache=True, inline="always")
+def light_towards(surf, li, ox, oy, oz):
+    """(dx, dy, dz, dist, e): the unit direction from o towards punctual
+    light (or sun) li, its distance (inf: the sun) and the factor of its
+    intensity that arrives at normal incidence, unshadowed (1 / d^2, a
+    spot's falloff; 1 for the sun; e = 0: nothing arrives)."""
+    kind = surf.light_kind[li]
+    if kind == LIGHT_DIRECTIONAL:
+        return -surf.light_dir[li, 0], -surf.light_dir[li, 1], -surf.light_dir[li, 2], np.inf, 1.0
+    dx = surf.light_pos[li, 0] - ox
+    dy = surf.light_pos[li, 1] - oy
+    dz = surf.light_pos[li, 2] - oz
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if dist <= 0.0:
+        return 0.0, 1.0, 0.0, 0.0, 0.0
+    dx, dy, dz = dx / dist, dy / dist, dz / dist
+    e = 1.0 / (dist * dist)
+    if kind == LIGHT_SPOT:
+        e *= spot_falloff(-(dx * surf.light_dir[li, 0] + dy * surf.light_dir[li, 1] + dz * surf.light_dir[li, 2]),
+                          surf.light_cones[li, 0], surf.light_cones[li, 1])
+    return dx, dy, dz, dist, e
+
+
+@njit(cache=True, inline="always")
+def punctual_delta(bvh, surf, stack, ox, oy, oz, li):
+    """(dx, dy, dz, r, g, b): punctual light (or sun) li seen from o: the
+    unit direction towards it and the irradiance it brings at normal
+    incidence, behind its shadow ray (glass tints; 0 where shadowed): the
+    delta a probe at o holds of it."""
+    dx, dy, dz, dist, e = light_towards(surf, li, ox, oy, oz)
+    if e <= 0.0:
+        return dx, dy, dz, 0.0, 0.0, 0.0
+    t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist)
+    return (dx, dy, dz, surf.light_intensity[li, 0] * e * t0, surf.light_intensity[li, 1] * e * t1,
+            surf.light_intensity[li, 2] * e * t2)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

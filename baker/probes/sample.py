@@ -17,16 +17,32 @@ Each probe's E(n) is its irradiance map read at n (bilinear over the
 octahedral texels, across the map's folded edges as the octahedron
 joins them); the result is the weighted mean of the probes, and 0 where
 no probe counts. (probe_irradiance_sh reads the order-2 SH instead, as
-clients that take SH do.)
+clients that take SH do.) With ProbeLights, the sun and punctual lights
+come out of each probe's map read and in at the point itself behind its
+own shadow ray: a probe grid cannot hold a shadow's edge.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from collections import namedtuple
+from dataclasses import dataclass
+
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import transmittance
-from .gather import from_map, to_map
+from .gather import from_map, light_towards, punctual_delta, to_map
+
+# the scene's punctual lights and sun as the kernels here read them (the fields of scene.surfaces' arrays)
+LightArrays = namedtuple("LightArrays", "light_kind light_pos light_dir light_intensity light_cones")
+
+
+def light_arrays(surf=None) -> LightArrays:
+    """The punctual lights of surfaces' arrays `surf` (None: no light)."""
+    if surf is None:
+        return LightArrays(np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
+                           np.zeros((0, 2)))
+    return LightArrays(surf.light_kind, surf.light_pos, surf.light_dir, surf.light_intensity, surf.light_cones)
 
 BIAS = 0.05      # spacings along the normal, for the visibility test
 CRUSH = 0.05     # visibility weights below this count for nothing
@@ -117,13 +133,25 @@ def _sees(bvh, a, b) -> np.ndarray:
     return np.where((dist <= 0) | (t > 0), 1.0, 0.0)
 
 
-def interpolate(grid, points, normals, anchors=None, bvh=None) -> np.ndarray:
+def _delta_maps(lights, flat) -> np.ndarray:
+    """(n, S, S, 3): the part of probes `flat`'s irradiance maps that their
+    punctual lights and sun make (ProbeLights), texel by texel as the bake
+    added it."""
+    texdirs, ldir, le = lights.texdirs, lights.direction[flat], lights.irradiance[flat]
+    cos = np.maximum(np.einsum("qk,nlk->nlq", texdirs, ldir), 0.0)      # (n, L, S^2)
+    size = int(round(np.sqrt(len(texdirs))))
+    return np.einsum("nlq,nlc->nqc", cos, le).reshape(len(flat), size, size, 3)
+
+
+def interpolate(grid, points, normals, anchors=None, bvh=None, lights=None) -> np.ndarray:
     """(n, 3) irradiance at points (n, 3) with unit normals (n, 3).
     anchors (n, 3) with bvh (the scene's BVHArrays): each point belongs
     to an object whose centre is its anchor, and a probe that the anchor
     does not see (a ray from it meets a surface first) counts for
     nothing: the exact test the distance moments only approximate, which
-    keeps an object beside a wall lit by its own side alone."""
+    keeps an object beside a wall lit by its own side alone. lights
+    (ProbeLights): the punctual lights and sun taken out of each probe's
+    map and added at each point behind its own shadow ray."""
     points = np.asarray(points, np.float64)
     normals = np.asarray(normals, np.float64)
     dims = np.asarray(grid.dims, np.int64)
@@ -153,19 +181,26 @@ def interpolate(grid, points, normals, anchors=None, bvh=None) -> np.ndarray:
         w = w * cheb * grid.valid[flat]
         if anchors is not None:
             w = w * _sees(bvh, np.asarray(anchors, np.float64), p)
-        total += w[:, None] * irradiance_map_at(grid.irradiance[flat], normals)
+        maps = grid.irradiance[flat].astype(np.float64)
+        if lights is not None and lights.count:
+            maps = maps - _delta_maps(lights, flat)
+        total += w[:, None] * irradiance_map_at(maps, normals)
         weight += w
-    out = np.where(weight[:, None] > 0, total / np.where(weight > 0, weight, 1.0)[:, None], 0.0)
-    return np.maximum(out, 0.0)
+    out = np.maximum(np.where(weight[:, None] > 0, total / np.where(weight > 0, weight, 1.0)[:, None], 0.0), 0.0)
+    if lights is not None and lights.count:
+        _points_lights(lights.bvh, lights.lights, np.ascontiguousarray(points), np.ascontiguousarray(normals), out)
+    return out
 
 
-def object_map(grid, center, bvh) -> np.ndarray:
+def object_map(grid, center, bvh, lights=None) -> np.ndarray:
     """(S, S, 3) float32: the irradiance map of a small object at
     `center`: the probes' maps weighted as interpolate weighs them at the
     centre itself (trilinear, Chebyshev toward the centre, valid, seen
     from it). Read at a normal n it is interpolate(grid, center, n) (the
     read is linear in the maps): what the viewer shades an object no
-    larger than a probe cell with, one map read per pixel."""
+    larger than a probe cell with, one map read per pixel. With `lights`
+    the punctual lights and sun come out of the probes' maps and in as
+    seen from the centre, at each texel's normal."""
     c = np.asarray(center, np.float64)[None]
     dims = np.asarray(grid.dims, np.int64)
     s = float(grid.spacing)
@@ -189,27 +224,19 @@ def object_map(grid, center, bvh) -> np.ndarray:
         cheb = 1.0 if d <= mean else (var / (var + (d - mean) ** 2)) ** 3
         cheb = 0.0 if cheb < CRUSH else cheb
         w *= cheb * float(grid.valid[flat]) * float(_sees(bvh, c, p)[0])
-        out += w * grid.irradiance[flat]
+        m = grid.irradiance[flat].astype(np.float64)
+        if lights is not None and lights.count:
+            m = m - _delta_maps(lights, np.array([flat]))[0]
+        out += w * m
         total += w
-    return (out / total if total > 0 else out).astype(np.float32)
-
-
-def sphere_map(grid, center, radius, seen, size) -> np.ndarray:
-    """(size, size, 3) float32: the irradiance over a sphere's surface as
-    an octahedral map of its normals: texel n holds interpolate at the
-    point center + radius n with normal n, the probes weighted by
-    seen (count,) (1 where a probe is valid and seen from the centre,
-    viewer/objects.probe_mask: interpolate's anchor test, once per probe
-    instead of once per point). A sphere's point is a function of its
-    normal, so the map read at a pixel's normal is that pixel's
-    interpolate to the map's resolution: what the viewer shades a sphere
-    larger than a probe cell with, one read a pixel. One thread: it runs
-    every frame an object moves, beside the viewer's software rasterizer."""
-    out = np.zeros((size, size, 3), np.float32)
-    _sphere_map(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
-                np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
-                np.asarray(center, np.float64), float(radius), out)
-    return out
+    out = out / total if total > 0 else out
+    if lights is not None and lights.count:
+        out = np.maximum(out, 0.0)
+        texdirs = lights.texdirs
+        add = np.zeros((len(texdirs), 3))
+        _points_lights(lights.bvh, lights.lights, np.repeat(c, len(texdirs), 0), np.ascontiguousarray(texdirs), add)
+        out = out + add.reshape(out.shape)
+    return out.astype(np.float32)
 
 
 @njit(cache=True, inline="always")
@@ -241,10 +268,29 @@ def _wrap1(row, col, size):
 
 
 @njit(cache=True, inline="always")
-def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac):
+def _oct_bilinear(x, y, z, size):
+    """(ra, ca, rb, cb, rc, cc, rd, cd, wa, wb, wc, wd): the four texels
+    (row, column) of a size x size octahedral map around unit direction
+    (x, y, z), folded across its edges (_wrap1), and their bilinear
+    weights: irradiance_map_at's read."""
+    u, v = _oct_col_row(x, y, z, size)
+    fx, fy = u - 0.5, v - 0.5
+    c0, r0 = int(np.floor(fx)), int(np.floor(fy))
+    fx, fy = fx - c0, fy - r0
+    ra, ca = _wrap1(r0, c0, size)
+    rb, cb = _wrap1(r0, c0 + 1, size)
+    rc, cc = _wrap1(r0 + 1, c0, size)
+    rd, cd = _wrap1(r0 + 1, c0 + 1, size)
+    return ra, ca, rb, cb, rc, cc, rd, cd, (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+
+
+@njit(cache=True, inline="always")
+def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac, texdirs, ldir, le):
     """(r, g, b): interpolate's sum at point x (3,) with unit normal n
     (3,), its probes weighted by seen[probe] (the anchor test, made
-    beforehand); base (3,) int64 and frac (3,) scratch."""
+    beforehand); base (3,) int64 and frac (3,) scratch. Each probe's map
+    read less the punctual lights it holds (ldir, le (count, L, 3):
+    ProbeLights; L = 0: none taken out), read at the same texels."""
     isz, dsz = irr.shape[1], depth.shape[1]
     for k in range(3):
         g = (x[k] - origin[k]) / spacing
@@ -253,15 +299,8 @@ def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac)
         frac[k] = min(max(g - b, 0.0), 1.0) if dims[k] > 1 else 0.0
     lx, ly, lz = x[0] + BIAS * spacing * n[0], x[1] + BIAS * spacing * n[1], x[2] + BIAS * spacing * n[2]
     # the normal's texel in the probes' irradiance maps, as irradiance_map_at reads it
-    u, v = _oct_col_row(n[0], n[1], n[2], isz)
-    fx, fy = u - 0.5, v - 0.5
-    c0, r0 = int(np.floor(fx)), int(np.floor(fy))
-    fx, fy = fx - c0, fy - r0
-    ra, ca = _wrap1(r0, c0, isz)
-    rb, cb = _wrap1(r0, c0 + 1, isz)
-    rc, cc = _wrap1(r0 + 1, c0, isz)
-    rd, cd = _wrap1(r0 + 1, c0 + 1, isz)
-    wa, wb, wc, wd = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+    ra, ca, rb, cb, rc, cc, rd, cd, wa, wb, wc, wd = _oct_bilinear(n[0], n[1], n[2], isz)
+    qa, qb, qc, qd = ra * isz + ca, rb * isz + cb, rc * isz + cc, rd * isz + cd
     t0 = t1 = t2 = 0.0
     total = 0.0
     for corner in range(8):
@@ -287,66 +326,252 @@ def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac)
         if cheb < CRUSH:
             continue
         w *= cheb
-        for ch in range(3):
-            e = wa * irr[flat, ra, ca, ch] + wb * irr[flat, rb, cb, ch] + wc * irr[flat, rc, cc, ch] \
-                + wd * irr[flat, rd, cd, ch]
-            if ch == 0:
-                t0 += w * e
-            elif ch == 1:
-                t1 += w * e
-            else:
-                t2 += w * e
+        e0 = wa * irr[flat, ra, ca, 0] + wb * irr[flat, rb, cb, 0] + wc * irr[flat, rc, cc, 0] + wd * irr[flat, rd, cd, 0]
+        e1 = wa * irr[flat, ra, ca, 1] + wb * irr[flat, rb, cb, 1] + wc * irr[flat, rc, cc, 1] + wd * irr[flat, rd, cd, 1]
+        e2 = wa * irr[flat, ra, ca, 2] + wb * irr[flat, rb, cb, 2] + wc * irr[flat, rc, cc, 2] + wd * irr[flat, rd, cd, 2]
+        for li in range(ldir.shape[1]):
+            if le[flat, li, 0] == 0.0 and le[flat, li, 1] == 0.0 and le[flat, li, 2] == 0.0:
+                continue
+            ox, oy, oz = ldir[flat, li, 0], ldir[flat, li, 1], ldir[flat, li, 2]
+            c = wa * max(texdirs[qa, 0] * ox + texdirs[qa, 1] * oy + texdirs[qa, 2] * oz, 0.0) \
+                + wb * max(texdirs[qb, 0] * ox + texdirs[qb, 1] * oy + texdirs[qb, 2] * oz, 0.0) \
+                + wc * max(texdirs[qc, 0] * ox + texdirs[qc, 1] * oy + texdirs[qc, 2] * oz, 0.0) \
+                + wd * max(texdirs[qd, 0] * ox + texdirs[qd, 1] * oy + texdirs[qd, 2] * oz, 0.0)
+            e0 -= le[flat, li, 0] * c
+            e1 -= le[flat, li, 1] * c
+            e2 -= le[flat, li, 2] * c
+        t0 += w * e0
+        t1 += w * e1
+        t2 += w * e2
         total += w
     if total > 0.0:
         return max(t0 / total, 0.0), max(t1 / total, 0.0), max(t2 / total, 0.0)
     return 0.0, 0.0, 0.0
 
 
+@njit(cache=True, inline="always")
+def _lights_at(surf, x, n, vis_r, vis_g, vis_b):
+    """(r, g, b): the punctual lights' and sun's irradiance at x (3,) with
+    normal n (3,), each times its transmittance vis_*[l] from x."""
+    r = g = b = 0.0
+    for li in range(surf.light_kind.shape[0]):
+        dx, dy, dz, dist, e = light_towards(surf, li, x[0], x[1], x[2])
+        cos = n[0] * dx + n[1] * dy + n[2] * dz
+        if cos <= 0.0 or e <= 0.0:
+            continue
+        f = e * cos
+        r += surf.light_intensity[li, 0] * f * vis_r[li]
+        g += surf.light_intensity[li, 1] * f * vis_g[li]
+        b += surf.light_intensity[li, 2] * f * vis_b[li]
+    return r, g, b
+
+
+@njit(cache=True, inline="always")
+def _sees_lights(bvh, surf, stack, x, n, lift, vis_r, vis_g, vis_b):
+    """vis_*[l]: the transmittance from x (lifted `lift` along n) towards
+    each punctual light and the sun (0 behind an opaque surface)."""
+    ox, oy, oz = x[0] + lift * n[0], x[1] + lift * n[1], x[2] + lift * n[2]
+    for li in range(surf.light_kind.shape[0]):
+        dx, dy, dz, dist, e = light_towards(surf, li, ox, oy, oz)
+        if e <= 0.0:
+            vis_r[li] = vis_g[li] = vis_b[li] = 0.0
+            continue
+        t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist)
+        vis_r[li], vis_g[li], vis_b[li] = t0, t1, t2
+
+
+@njit(cache=True, inline="always")
+def _sphere_point(row, col, size, center, radius, x, nn):
+    """nn (3,): the normal at the centre of texel (row, col) of a size x
+    size octahedral map (the inverse of oct_uv); x (3,): the sphere's
+    point with that normal."""
+    px, py = 2.0 * (col + 0.5) / size - 1.0, 2.0 * (row + 0.5) / size - 1.0
+    nz = 1.0 - abs(px) - abs(py)
+    nx, ny = px, py
+    if nz < 0.0:
+        nx, ny = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
+    ln = np.sqrt(nx * nx + ny * ny + nz * nz)
+    n = from_map(nx / ln, ny / ln, nz / ln)
+    for k in range(3):
+        nn[k] = n[k]
+        x[k] = center[k] + radius * n[k]
+
+
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, out):
+def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, texdirs, ldir, le, lights, vis, out):
     size = out.shape[0]
+    vsz = vis.shape[0]
+    n_lights = vis.shape[2]
     base = np.empty(3, np.int64)
     frac = np.empty(3)
     x = np.empty(3)
     nn = np.empty(3)
+    vr, vg, vb = np.empty(n_lights), np.empty(n_lights), np.empty(n_lights)
     for row in range(size):
         for col in range(size):
-            # the texel centre's normal (the inverse of oct_uv)
-            px, py = 2.0 * (col + 0.5) / size - 1.0, 2.0 * (row + 0.5) / size - 1.0
-            nz = 1.0 - abs(px) - abs(py)
-            nx, ny = px, py
-            if nz < 0.0:
-                nx, ny = (1.0 - abs(py)) * (1.0 if px >= 0.0 else -1.0), (1.0 - abs(px)) * (1.0 if py >= 0.0 else -1.0)
-            ln = np.sqrt(nx * nx + ny * ny + nz * nz)
-            n = from_map(nx / ln, ny / ln, nz / ln)
-            for k in range(3):
-                nn[k] = n[k]
-                x[k] = center[k] + radius * n[k]
-            r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, x, nn, base, frac)
+            _sphere_point(row, col, size, center, radius, x, nn)
+            r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, x, nn, base, frac, texdirs, ldir, le)
+            if n_lights:
+                # the lights' visibility read bilinearly from its coarser map over the same normals
+                ra, ca, rb, cb, rc, cc, rd, cd, wa, wb, wc, wd = _oct_bilinear(nn[0], nn[1], nn[2], vsz)
+                for li in range(n_lights):
+                    vr[li] = wa * vis[ra, ca, li, 0] + wb * vis[rb, cb, li, 0] + wc * vis[rc, cc, li, 0] \
+                        + wd * vis[rd, cd, li, 0]
+                    vg[li] = wa * vis[ra, ca, li, 1] + wb * vis[rb, cb, li, 1] + wc * vis[rc, cc, li, 1] \
+                        + wd * vis[rd, cd, li, 1]
+                    vb[li] = wa * vis[ra, ca, li, 2] + wb * vis[rb, cb, li, 2] + wc * vis[rc, cc, li, 2] \
+                        + wd * vis[rd, cd, li, 2]
+                dr, dg, db = _lights_at(lights, x, nn, vr, vg, vb)
+                r, g, b = r + dr, g + dg, b + db
             out[row, col, 0] = r
             out[row, col, 1] = g
             out[row, col, 2] = b
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _points_irradiance(irr, depth, seen, origin, spacing, dims, points, normals, out):
+def _sphere_visibility(bvh, lights, center, radius, out):
+    """out (S, S, L, 3): the transmittance towards each light from the
+    sphere's point at each texel normal of an S x S octahedral map."""
+    size = out.shape[0]
+    stack = np.empty(STACK_SIZE, np.int32)
+    x = np.empty(3)
+    nn = np.empty(3)
+    n_lights = out.shape[2]
+    vr, vg, vb = np.empty(n_lights), np.empty(n_lights), np.empty(n_lights)
+    for row in range(size):
+        for col in range(size):
+            _sphere_point(row, col, size, center, radius, x, nn)
+            _sees_lights(bvh, lights, stack, x, nn, 0.0, vr, vg, vb)
+            for li in range(n_lights):
+                out[row, col, li, 0], out[row, col, li, 1], out[row, col, li, 2] = vr[li], vg[li], vb[li]
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _points_irradiance(irr, depth, seen, origin, spacing, dims, points, normals, texdirs, ldir, le, out):
     base = np.empty(3, np.int64)
     frac = np.empty(3)
     for i in range(points.shape[0]):
-        r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, points[i], normals[i], base, frac)
+        r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, points[i], normals[i], base, frac,
+                                    texdirs, ldir, le)
         out[i, 0] = r
         out[i, 1] = g
         out[i, 2] = b
 
 
-def points_irradiance(grid, points, normals, seen) -> np.ndarray:
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _points_lights(bvh, lights, points, normals, out):
+    """out[i] += the punctual lights and sun at points[i] with normals[i],
+    each behind its shadow ray from the point."""
+    stack = np.empty(STACK_SIZE, np.int32)
+    n_lights = lights.light_kind.shape[0]
+    vr, vg, vb = np.empty(n_lights), np.empty(n_lights), np.empty(n_lights)
+    for i in range(points.shape[0]):
+        _sees_lights(bvh, lights, stack, points[i], normals[i], 0.0, vr, vg, vb)
+        r, g, b = _lights_at(lights, points[i], normals[i], vr, vg, vb)
+        out[i, 0] += r
+        out[i, 1] += g
+        out[i, 2] += b
+
+
+@dataclass(frozen=True)
+class ProbeLights:
+    """The punctual lights and the sun taken out of the probes and put
+    back exactly at each shading point, behind its own shadow ray: a
+    probe grid cannot hold a sun shadow's edge between its probes (a
+    point in the sun's patch 18 cm over the walkthrough's floor read half
+    its light). The probes hold each such light as the delta the bake
+    added (gather.punctual_delta: its direction from the probe and its
+    irradiance behind the probe's own shadow ray), so it comes out of each
+    map read exactly. direction, irradiance (count, L, 3); texdirs
+    (IRR^2, 3) the maps' texel normals; bvh, surf: the scene's arrays for
+    the shading points' shadow rays."""
+    direction: np.ndarray
+    irradiance: np.ndarray
+    texdirs: np.ndarray
+    bvh: object
+    lights: LightArrays
+
+    @property
+    def count(self) -> int:
+        return int(self.direction.shape[1])
+
+
+@njit(cache=True)
+def _probe_lights(bvh, surf, points, direction, irradiance):
+    stack = np.empty(STACK_SIZE, np.int32)
+    for i in range(points.shape[0]):
+        for li in range(surf.light_kind.shape[0]):
+            dx, dy, dz, r, g, b = punctual_delta(bvh, surf, stack, points[i, 0], points[i, 1], points[i, 2], li)
+            direction[i, li, 0], direction[i, li, 1], direction[i, li, 2] = dx, dy, dz
+            irradiance[i, li, 0], irradiance[i, li, 1], irradiance[i, li, 2] = r, g, b
+
+
+def probe_lights(grid, prepared) -> ProbeLights:
+    """ProbeLights of `grid` in the scene `prepared` (its punctual lights
+    and sun as the bake saw them from each probe: one shadow ray each)."""
+    from .gather import IRR, texel_directions
+    surf, bvh = prepared.surfaces.arrays, prepared.bvh.arrays
+    n_lights = int(surf.light_kind.shape[0])
+    direction = np.zeros((grid.count, n_lights, 3))
+    irradiance = np.zeros((grid.count, n_lights, 3))
+    if n_lights:
+        _probe_lights(bvh, surf, np.ascontiguousarray(grid.positions(), np.float64), direction, irradiance)
+    return ProbeLights(direction, irradiance, texel_directions(IRR), bvh, light_arrays(surf))
+
+
+def _light_arrays(grid, lights):
+    """(texdirs, direction, irradiance) for the kernels: none taken out
+    where `lights` is None or the scene has no punctual light."""
+    if lights is None or lights.count == 0:
+        return np.zeros((1, 3)), np.zeros((grid.count, 0, 3)), np.zeros((grid.count, 0, 3))
+    return lights.texdirs, lights.direction, lights.irradiance
+
+
+VISIBILITY_MAP = 16   # normals a side of a large sphere's light-visibility map (bilinear between them)
+
+
+def sphere_map(grid, center, radius, seen, size, lights: ProbeLights | None = None) -> np.ndarray:
+    """(size, size, 3) float32: the irradiance over a sphere's surface as
+    an octahedral map of its normals: texel n holds interpolate at the
+    point center + radius n with normal n, the probes weighted by
+    seen (count,) (1 where a probe is valid and seen from the centre,
+    viewer/objects.probe_mask: interpolate's anchor test, once per probe
+    instead of once per point). A sphere's point is a function of its
+    normal, so the map read at a pixel's normal is that pixel's
+    interpolate to the map's resolution: what the viewer shades a sphere
+    larger than a probe cell with, one read a pixel. With `lights`, the
+    punctual lights and the sun come out of the probes and in at each
+    point, their visibility from a VISIBILITY_MAP squared map of the
+    sphere's points (shadow rays) read bilinearly. One thread: it runs
+    every frame an object moves, beside the viewer's software rasterizer."""
+    texdirs, ldir, le = _light_arrays(grid, lights)
+    out = np.zeros((size, size, 3), np.float32)
+    if ldir.shape[1]:
+        vis = np.zeros((VISIBILITY_MAP, VISIBILITY_MAP, ldir.shape[1], 3))
+        _sphere_visibility(lights.bvh, lights.lights, np.asarray(center, np.float64), float(radius), vis)
+        arrays = lights.lights
+    else:
+        vis, arrays = np.zeros((1, 1, 0, 3)), light_arrays()
+    _sphere_map(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
+                np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
+                np.asarray(center, np.float64), float(radius), texdirs, ldir, le, arrays, vis, out)
+    return out
+
+
+def points_irradiance(grid, points, normals, seen, lights: ProbeLights | None = None) -> np.ndarray:
     """(n, 3) float32: interpolate at points (n, 3) with unit normals
     (n, 3), the probes weighted by seen (count,) uint8 (probe_seen: valid
     and seen from the object's anchor) instead of a ray per point: what the
-    viewer lights a dynamic mesh's vertices with when it moves. One thread,
-    as sphere_map."""
+    viewer lights a dynamic mesh's vertices with when it moves; with
+    `lights`, the punctual lights and sun out of the probes and in at each
+    point behind its own shadow ray. One thread, as sphere_map."""
+    texdirs, ldir, le = _light_arrays(grid, lights)
     out = np.zeros((len(points), 3), np.float32)
+    p = np.ascontiguousarray(points, np.float64)
+    n = np.ascontiguousarray(normals, np.float64)
     _points_irradiance(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
                        np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
-                       np.ascontiguousarray(points, np.float64), np.ascontiguousarray(normals, np.float64), out)
+                       p, n, texdirs, ldir, le, out)
+    if ldir.shape[1]:
+        _points_lights(lights.bvh, lights.lights, p, n, out)
     return out
