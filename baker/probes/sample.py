@@ -133,16 +133,6 @@ def _sees(bvh, a, b) -> np.ndarray:
     return np.where((dist <= 0) | (t > 0), 1.0, 0.0)
 
 
-def _delta_maps(lights, flat) -> np.ndarray:
-    """(n, S, S, 3): the part of probes `flat`'s irradiance maps that their
-    punctual lights and sun make (ProbeLights), texel by texel as the bake
-    added it."""
-    texdirs, ldir, le = lights.texdirs, lights.direction[flat], lights.irradiance[flat]
-    cos = np.maximum(np.einsum("qk,nlk->nlq", texdirs, ldir), 0.0)      # (n, L, S^2)
-    size = int(round(np.sqrt(len(texdirs))))
-    return np.einsum("nlq,nlc->nqc", cos, le).reshape(len(flat), size, size, 3)
-
-
 def interpolate(grid, points, normals, anchors=None, bvh=None, lights=None) -> np.ndarray:
     """(n, 3) irradiance at points (n, 3) with unit normals (n, 3).
     anchors (n, 3) with bvh (the scene's BVHArrays): each point belongs
@@ -181,10 +171,7 @@ def interpolate(grid, points, normals, anchors=None, bvh=None, lights=None) -> n
         w = w * cheb * grid.valid[flat]
         if anchors is not None:
             w = w * _sees(bvh, np.asarray(anchors, np.float64), p)
-        maps = grid.irradiance[flat].astype(np.float64)
-        if lights is not None and lights.count:
-            maps = maps - _delta_maps(lights, flat)
-        total += w[:, None] * irradiance_map_at(maps, normals)
+        total += w[:, None] * irradiance_map_at(_maps(grid, lights)[flat], normals)
         weight += w
     out = np.maximum(np.where(weight[:, None] > 0, total / np.where(weight > 0, weight, 1.0)[:, None], 0.0), 0.0)
     if lights is not None and lights.count:
@@ -224,10 +211,7 @@ def object_map(grid, center, bvh, lights=None) -> np.ndarray:
         cheb = 1.0 if d <= mean else (var / (var + (d - mean) ** 2)) ** 3
         cheb = 0.0 if cheb < CRUSH else cheb
         w *= cheb * float(grid.valid[flat]) * float(_sees(bvh, c, p)[0])
-        m = grid.irradiance[flat].astype(np.float64)
-        if lights is not None and lights.count:
-            m = m - _delta_maps(lights, np.array([flat]))[0]
-        out += w * m
+        out += w * _maps(grid, lights)[flat].astype(np.float64)
         total += w
     out = out / total if total > 0 else out
     if lights is not None and lights.count:
@@ -285,12 +269,11 @@ def _oct_bilinear(x, y, z, size):
 
 
 @njit(cache=True, inline="always")
-def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac, texdirs, ldir, le):
+def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac):
     """(r, g, b): interpolate's sum at point x (3,) with unit normal n
     (3,), its probes weighted by seen[probe] (the anchor test, made
-    beforehand); base (3,) int64 and frac (3,) scratch. Each probe's map
-    read less the punctual lights it holds (ldir, le (count, L, 3):
-    ProbeLights; L = 0: none taken out), read at the same texels."""
+    beforehand); base (3,) int64 and frac (3,) scratch; irr the probes'
+    maps (or ProbeLights.rest)."""
     isz, dsz = irr.shape[1], depth.shape[1]
     for k in range(3):
         g = (x[k] - origin[k]) / spacing
@@ -300,7 +283,6 @@ def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac,
     lx, ly, lz = x[0] + BIAS * spacing * n[0], x[1] + BIAS * spacing * n[1], x[2] + BIAS * spacing * n[2]
     # the normal's texel in the probes' irradiance maps, as irradiance_map_at reads it
     ra, ca, rb, cb, rc, cc, rd, cd, wa, wb, wc, wd = _oct_bilinear(n[0], n[1], n[2], isz)
-    qa, qb, qc, qd = ra * isz + ca, rb * isz + cb, rc * isz + cc, rd * isz + cd
     t0 = t1 = t2 = 0.0
     total = 0.0
     for corner in range(8):
@@ -329,17 +311,6 @@ def _point_irradiance(irr, depth, seen, origin, spacing, dims, x, n, base, frac,
         e0 = wa * irr[flat, ra, ca, 0] + wb * irr[flat, rb, cb, 0] + wc * irr[flat, rc, cc, 0] + wd * irr[flat, rd, cd, 0]
         e1 = wa * irr[flat, ra, ca, 1] + wb * irr[flat, rb, cb, 1] + wc * irr[flat, rc, cc, 1] + wd * irr[flat, rd, cd, 1]
         e2 = wa * irr[flat, ra, ca, 2] + wb * irr[flat, rb, cb, 2] + wc * irr[flat, rc, cc, 2] + wd * irr[flat, rd, cd, 2]
-        for li in range(ldir.shape[1]):
-            if le[flat, li, 0] == 0.0 and le[flat, li, 1] == 0.0 and le[flat, li, 2] == 0.0:
-                continue
-            ox, oy, oz = ldir[flat, li, 0], ldir[flat, li, 1], ldir[flat, li, 2]
-            c = wa * max(texdirs[qa, 0] * ox + texdirs[qa, 1] * oy + texdirs[qa, 2] * oz, 0.0) \
-                + wb * max(texdirs[qb, 0] * ox + texdirs[qb, 1] * oy + texdirs[qb, 2] * oz, 0.0) \
-                + wc * max(texdirs[qc, 0] * ox + texdirs[qc, 1] * oy + texdirs[qc, 2] * oz, 0.0) \
-                + wd * max(texdirs[qd, 0] * ox + texdirs[qd, 1] * oy + texdirs[qd, 2] * oz, 0.0)
-            e0 -= le[flat, li, 0] * c
-            e1 -= le[flat, li, 1] * c
-            e2 -= le[flat, li, 2] * c
         t0 += w * e0
         t1 += w * e1
         t2 += w * e2
@@ -398,7 +369,7 @@ def _sphere_point(row, col, size, center, radius, x, nn):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, texdirs, ldir, le, lights, vis, out):
+def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, lights, vis, out):
     size = out.shape[0]
     vsz = vis.shape[0]
     n_lights = vis.shape[2]
@@ -410,7 +381,7 @@ def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, texdirs
     for row in range(size):
         for col in range(size):
             _sphere_point(row, col, size, center, radius, x, nn)
-            r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, x, nn, base, frac, texdirs, ldir, le)
+            r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, x, nn, base, frac)
             if n_lights:
                 # the lights' visibility read bilinearly from its coarser map over the same normals
                 ra, ca, rb, cb, rc, cc, rd, cd, wa, wb, wc, wd = _oct_bilinear(nn[0], nn[1], nn[2], vsz)
@@ -447,12 +418,11 @@ def _sphere_visibility(bvh, lights, center, radius, out):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _points_irradiance(irr, depth, seen, origin, spacing, dims, points, normals, texdirs, ldir, le, out):
+def _points_irradiance(irr, depth, seen, origin, spacing, dims, points, normals, out):
     base = np.empty(3, np.int64)
     frac = np.empty(3)
     for i in range(points.shape[0]):
-        r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, points[i], normals[i], base, frac,
-                                    texdirs, ldir, le)
+        r, g, b = _point_irradiance(irr, depth, seen, origin, spacing, dims, points[i], normals[i], base, frac)
         out[i, 0] = r
         out[i, 1] = g
         out[i, 2] = b
@@ -481,13 +451,15 @@ class ProbeLights:
     point in the sun's patch 18 cm over the walkthrough's floor read half
     its light). The probes hold each such light as the delta the bake
     added (gather.punctual_delta: its direction from the probe and its
-    irradiance behind the probe's own shadow ray), so it comes out of each
-    map read exactly. direction, irradiance (count, L, 3); texdirs
-    (IRR^2, 3) the maps' texel normals; bvh, surf: the scene's arrays for
-    the shading points' shadow rays."""
+    irradiance behind the probe's own shadow ray), so it comes out of the
+    maps exactly, texel by texel, once: rest (count, S, S, 3) float32 the
+    maps without them (what every read then reads). direction, irradiance
+    (count, L, 3) the deltas; texdirs (S^2, 3) the maps' texel normals;
+    bvh, lights: the scene's arrays for the shading points' shadow rays."""
     direction: np.ndarray
     irradiance: np.ndarray
     texdirs: np.ndarray
+    rest: np.ndarray
     bvh: object
     lights: LightArrays
 
@@ -514,17 +486,24 @@ def probe_lights(grid, prepared) -> ProbeLights:
     n_lights = int(surf.light_kind.shape[0])
     direction = np.zeros((grid.count, n_lights, 3))
     irradiance = np.zeros((grid.count, n_lights, 3))
+    texdirs = texel_directions(IRR)
+    rest = grid.irradiance
     if n_lights:
         _probe_lights(bvh, surf, np.ascontiguousarray(grid.positions(), np.float64), direction, irradiance)
-    return ProbeLights(direction, irradiance, texel_directions(IRR), bvh, light_arrays(surf))
+        rest = np.empty_like(grid.irradiance, np.float32)
+        for a in range(0, grid.count, 1024):   # in blocks: (block, L, S^2) cosines at a time
+            b = min(a + 1024, grid.count)
+            cos = np.maximum(np.einsum("qk,nlk->nlq", texdirs, direction[a:b]), 0.0)
+            delta = np.einsum("nlq,nlc->nqc", cos, irradiance[a:b]).reshape(rest[a:b].shape)
+            rest[a:b] = grid.irradiance[a:b] - delta
+    return ProbeLights(direction, irradiance, texdirs, np.ascontiguousarray(rest, np.float32), bvh,
+                       light_arrays(surf))
 
 
-def _light_arrays(grid, lights):
-    """(texdirs, direction, irradiance) for the kernels: none taken out
-    where `lights` is None or the scene has no punctual light."""
-    if lights is None or lights.count == 0:
-        return np.zeros((1, 3)), np.zeros((grid.count, 0, 3)), np.zeros((grid.count, 0, 3))
-    return lights.texdirs, lights.direction, lights.irradiance
+def _maps(grid, lights):
+    """The maps the kernels read: the probes', or without the punctual
+    lights (ProbeLights.rest) where they are put back at each point."""
+    return grid.irradiance if lights is None or lights.count == 0 else lights.rest
 
 
 VISIBILITY_MAP = 16   # normals a side of a large sphere's light-visibility map (bilinear between them)
@@ -544,17 +523,16 @@ def sphere_map(grid, center, radius, seen, size, lights: ProbeLights | None = No
     point, their visibility from a VISIBILITY_MAP squared map of the
     sphere's points (shadow rays) read bilinearly. One thread: it runs
     every frame an object moves, beside the viewer's software rasterizer."""
-    texdirs, ldir, le = _light_arrays(grid, lights)
     out = np.zeros((size, size, 3), np.float32)
-    if ldir.shape[1]:
-        vis = np.zeros((VISIBILITY_MAP, VISIBILITY_MAP, ldir.shape[1], 3))
+    if lights is not None and lights.count:
+        vis = np.zeros((VISIBILITY_MAP, VISIBILITY_MAP, lights.count, 3))
         _sphere_visibility(lights.bvh, lights.lights, np.asarray(center, np.float64), float(radius), vis)
         arrays = lights.lights
     else:
         vis, arrays = np.zeros((1, 1, 0, 3)), light_arrays()
-    _sphere_map(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
+    _sphere_map(_maps(grid, lights), grid.depth, np.ascontiguousarray(seen, np.uint8),
                 np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
-                np.asarray(center, np.float64), float(radius), texdirs, ldir, le, arrays, vis, out)
+                np.asarray(center, np.float64), float(radius), arrays, vis, out)
     return out
 
 
@@ -565,13 +543,12 @@ def points_irradiance(grid, points, normals, seen, lights: ProbeLights | None = 
     viewer lights a dynamic mesh's vertices with when it moves; with
     `lights`, the punctual lights and sun out of the probes and in at each
     point behind its own shadow ray. One thread, as sphere_map."""
-    texdirs, ldir, le = _light_arrays(grid, lights)
     out = np.zeros((len(points), 3), np.float32)
     p = np.ascontiguousarray(points, np.float64)
     n = np.ascontiguousarray(normals, np.float64)
-    _points_irradiance(grid.irradiance, grid.depth, np.ascontiguousarray(seen, np.uint8),
+    _points_irradiance(_maps(grid, lights), grid.depth, np.ascontiguousarray(seen, np.uint8),
                        np.asarray(grid.origin, np.float64), float(grid.spacing), np.asarray(grid.dims, np.int64),
-                       p, n, texdirs, ldir, le, out)
-    if ldir.shape[1]:
+                       p, n, out)
+    if lights is not None and lights.count:
         _points_lights(lights.bvh, lights.lights, p, n, out)
     return out
