@@ -410,16 +410,24 @@ def test_a_snapshot_sphere_against_the_wall_of_the_dark_room_is_black(rooms_bake
     """voxview's sphere touching the one-sided wall on its dark side is
     exactly black in every pixel; in the lit room it is lit."""
     from viewer.objects import Sphere
-    from viewer.snapshot import snapshot
-    from baker.scene import camera_for
     path = tmp_path / "rooms.glb"
     write_bake(str(path), rooms_bake[1].bake)
     bake = read_bake(str(path))
     r = 0.1
+    assert_dark_beside_the_wall_and_lit(bake, gl, r, r, lambda centre: (Sphere(centre, r),))
+
+
+def assert_dark_beside_the_wall_and_lit(bake, gl, r, seen, place):
+    """In the two-rooms scene (one-sided wall at x = 1), an object of
+    radius r touching the wall, placed by place(centre) -> objects: every
+    pixel of it (within `seen` of its centre) exactly black on the dark
+    side, lit on the lit side."""
+    from baker.scene import camera_for
+    from viewer.snapshot import snapshot
     for name, centre in (("dark", (1.0 + r + 0.001, 0.5, 0.5)), ("lit", (1.0 - r - 0.001, 0.5, 0.5))):
         cam = camera_for(bake.scene, name)
-        img = snapshot(bake, cam, 48, 48, ctx=gl, objects=(Sphere(centre, r),))
-        mask = _sphere_pixels(cam, 48, 48, centre, r)
+        img = snapshot(bake, cam, 48, 48, ctx=gl, objects=place(centre))
+        mask = _sphere_pixels(cam, 48, 48, centre, seen)
         assert mask.sum() > 30
         if name == "dark":
             assert (img[mask] == 0).all()
