@@ -298,3 +298,24 @@ def test_the_window_moves_a_dynamic_mesh(furnace, tmp_path):
     rows, cols = np.nonzero(diff)
     # the ball leaves its place and shows right of it: the changed pixels' columns span both sides of where it was
     assert cols.max() > 80 + 20
+
+
+def test_a_dynamic_mesh_with_a_nan_vertex_is_refused(tmp_path):
+    """A dynamic node's own geometry is checked as the scene's is: a NaN
+    corner is refused in one line naming the mesh."""
+    import base64
+    from tests.hostile import triangle_doc, write_gltf
+    doc = triangle_doc()
+    bad = np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]], np.float32).tobytes()
+    doc["buffers"].append({"byteLength": 36, "uri": "data:application/octet-stream;base64,"
+                           + base64.b64encode(bad).decode()})
+    doc["bufferViews"].append({"buffer": 1, "byteOffset": 0, "byteLength": 36})
+    doc["accessors"].append({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3",
+                             "min": [0, 0, 0], "max": [1, 1, 0]})
+    doc["meshes"].append({"primitives": [{"attributes": {"POSITION": 1}, "material": 0}]})
+    doc["nodes"].append({"mesh": 1, "name": "prop"})
+    doc["scenes"][0]["nodes"].append(1)
+    path = write_gltf(tmp_path / "nan_prop.gltf", doc)
+    with pytest.raises(SceneError, match="dynamic mesh 'prop': vertices or position not finite") as e:
+        load_scene(path, dynamic=("prop",))
+    assert "\n" not in e.value.one_line() and "nan_prop.gltf" in e.value.one_line()
