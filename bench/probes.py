@@ -9,9 +9,11 @@ stage alone (bake_probes, timed twice, the faster kept), the grid, the
 share of valid probes and the bytes the probe block adds to the bake
 file. With --accuracy: at default, the irradiance of probes clear of
 surfaces and of the grid interpolated at random points as clear, against
-the path tracer, for the 14 normals of a cube's faces and corners (the
-points with the sun and punctual lights at the point, as the viewer
-lights objects). With
+the path tracer, for the 14 normals of a cube's faces and corners: a
+probe's own map ("map"), the probe's map without the sun, punctual
+lights and lamps with those added at the probe ("lit", as the viewer
+reads a probe), and the points lit so (as the viewer lights objects).
+With
 --window: voxview's window under Xvfb (llvmpipe) at 1280x720
 on the scene's default bake, with and without a sphere dropped at the
 first frame, standing still or moved by the arrow keys every frame
@@ -216,12 +218,15 @@ def accuracy_rows(scenes):
         pos = g.positions()
         rng = np.random.default_rng(7)
         clear = np.nonzero(g.valid & (g.depth[..., 0].reshape(g.count, -1).min(axis=1) > cell))[0]
-        probe_err = []
+        probe_err, viewer_err = [], []
+        lights = probe_lights(g, prepared)   # the sun, punctual lights and lamps exact at the points, as in the viewer
         for i in rng.choice(clear, min(PICKED, len(clear)), replace=False):
             want = path_traced_irradiance(prepared, pos[i], CUBE_NORMALS, 65536, 1).sum(axis=1)
             got = irradiance_map_at(np.repeat(g.irradiance[i][None], n, 0), CUBE_NORMALS).sum(axis=1)
             probe_err.append(_errors(got, want))
-        lights = probe_lights(g, prepared)   # the sun and punctual lights exact at the points, as the viewer has them
+            at = np.repeat(pos[i][None], n, 0)
+            got = interpolate(g, at, CUBE_NORMALS, at, prepared.bvh.arrays, lights).sum(axis=1)
+            viewer_err.append(_errors(got, want))
         candidates = lo + rng.random((40 * PICKED, 3)) * (hi - lo)
         points = candidates[_clear_points(prepared, candidates, cell)][:PICKED]
         point_err = []
@@ -230,10 +235,11 @@ def accuracy_rows(scenes):
             got = interpolate(g, np.repeat(p[None], n, 0), CUBE_NORMALS, np.repeat(p[None], n, 0),
                               prepared.bvh.arrays, lights).sum(axis=1)
             point_err.append(_errors(got, want))
-        pe, qe = np.concatenate(probe_err), np.concatenate(point_err)
+        pe, ve, qe = np.concatenate(probe_err), np.concatenate(viewer_err), np.concatenate(point_err)
         rows.append([name, f"{cell:.4g}", len(probe_err), f"{100 * np.median(pe):.1f}%",
-                     f"{100 * np.mean(pe < 0.03):.0f}%", f"{100 * pe.max():.1f}%", len(point_err), f"{100 * np.median(qe):.1f}%",
-                     f"{100 * np.mean(qe < 0.05):.0f}%", f"{100 * qe.max():.1f}%"])
+                     f"{100 * np.mean(pe < 0.03):.0f}%", f"{100 * pe.max():.1f}%", f"{100 * np.median(ve):.1f}%",
+                     f"{100 * np.mean(ve < 0.03):.0f}%", f"{100 * ve.max():.1f}%", len(point_err),
+                     f"{100 * np.median(qe):.1f}%", f"{100 * np.mean(qe < 0.05):.0f}%", f"{100 * qe.max():.1f}%"])
     return rows
 
 
@@ -252,8 +258,9 @@ def main():
     if args.accuracy:
         emit(args, f"probes against the path tracer at default, 14 normals each ({PICKED} probes and {PICKED} random "
                    "points per scene that see no surface nearer than a voxel cell)",
-             accuracy_rows(scenes), ["scene", "cell", "probes", "median error", "within 3%", "max", "points",
-                                     "median error", "within 5%", "max"])
+             accuracy_rows(scenes), ["scene", "cell", "probes", "map median", "map within 3%", "map max",
+                                     "lit median", "lit within 3%", "lit max", "points", "median error", "within 5%",
+                                     "max"])
     if args.window:
         emit(args, f"voxview window at 1280x720 under Xvfb (llvmpipe): {FRAMES_LONG} frames, and the steady rate "
                    f"(frames {FRAMES_SHORT} to {FRAMES_LONG}: after the first drop's BVH and shader)",

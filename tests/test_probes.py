@@ -494,23 +494,26 @@ def test_a_small_sphere_is_shaded_by_its_blended_map(cornell, gl, tmp_path):
     """A sphere no larger than a probe cell: voxview reads one map, the
     probes blended at its centre (object_map); every pixel equals the
     Python interpolation at the centre with that pixel's normal (within
-    1%), and the map read at n is interpolate(centre, n) exactly."""
-    from baker.probes.sample import object_map
+    1%; the lamp out of the probes and in at the centre, as the viewer
+    has it), and the map read at n is interpolate(centre, n) exactly."""
+    from baker.probes.sample import object_map, probe_lights
     from baker.scene import camera_for
     from baker.scene.prepared import prepare
-    from viewer.objects import Sphere
+    from viewer.objects import OBJECT_LAMP_RAYS, Sphere
     from viewer.snapshot import snapshot
     path = tmp_path / "c.glb"
     write_bake(str(path), bake_scene(cornell, small(probe_spacing=0.08)).bake)
     bake = read_bake(str(path))
     g = bake.probes
-    bvh = prepare(cornell).bvh.arrays
+    prepared = prepare(cornell)
+    bvh = prepared.bvh.arrays
     centre, r = np.array([0.3, 0.35, 0.3]), 0.07
     n = CUBE_NORMALS
     m = object_map(g, centre, bvh)
     assert np.allclose(irradiance_map_at(np.repeat(m[None], len(n), 0), n),
                        interpolate(g, np.repeat(centre[None], len(n), 0), n, np.repeat(centre[None], len(n), 0), bvh),
                        rtol=1e-5, atol=1e-6)
+    m = object_map(g, centre, bvh, probe_lights(g, prepared, OBJECT_LAMP_RAYS))
     w = h = 48
     cam = camera_for(bake.scene, None)
     img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
@@ -526,21 +529,24 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     interpolate (anchored at the centre) exactly; every pixel of the
     snapshot is interpolate at the pixel's point and normal within 1.5% of
     the sphere's brightest (the map's bilinear read between texels: 1.03%
-    at most here, beside the lamp)."""
-    from baker.probes.sample import sphere_map
+    at most here, beside the lamp). The lamp out of the probes and in at
+    each point, as the viewer has it."""
+    from baker.probes.sample import probe_lights, sphere_map
     from baker.scene import camera_for
     from baker.scene.prepared import prepare
-    from viewer.objects import Sphere, probe_seen
+    from viewer.objects import OBJECT_LAMP_RAYS, Sphere, probe_seen
     from viewer.snapshot import snapshot
     path = tmp_path / "c.glb"
     write_bake(str(path), bake_scene(cornell, small(probe_spacing=0.06)).bake)
     bake = read_bake(str(path))
     g = bake.probes
-    bvh = prepare(cornell).bvh.arrays
+    prepared = prepare(cornell)
+    bvh = prepared.bvh.arrays
+    lights = probe_lights(g, prepared, OBJECT_LAMP_RAYS)
     centre, r = np.array([0.28, 0.40, 0.28]), 0.09
     assert r > g.spacing
     size = 16
-    m = sphere_map(g, centre, r, probe_seen(g, centre, r, bvh), size)
+    m = sphere_map(g, centre, r, probe_seen(g, centre, r, bvh), size, lights)
     uv = (np.stack(np.meshgrid(np.arange(size), np.arange(size)), -1).reshape(-1, 2) + 0.5) / size * 2 - 1
     n = np.concatenate([uv, (1 - np.abs(uv).sum(axis=1))[:, None]], axis=1)   # the texel centres' normals
     low = n[:, 2] < 0
@@ -548,14 +554,14 @@ def test_a_large_sphere_is_shaded_by_its_surface_map(cornell, gl, tmp_path):
     n /= np.linalg.norm(n, axis=1)[:, None]
     n = n @ MAP_FRAME   # the maps' frame to the scene's
     anchors = np.repeat(centre[None], len(n), 0)
-    want = interpolate(g, centre + r * n, n, anchors, bvh)
+    want = interpolate(g, centre + r * n, n, anchors, bvh, lights)
     assert np.allclose(m.reshape(-1, 3), want, rtol=1e-4, atol=1e-6)
     assert (want.sum(axis=1) > 0).mean() > 0.9
     w = h = 96
     cam = camera_for(bake.scene, None)
     img = snapshot(bake, cam, w, h, samples=1, ctx=gl, objects=(Sphere(tuple(centre), r, (0.8, 0.8, 0.8)),))
     ys, xs, nrm = _sphere_normals(cam, w, h, centre, r)
-    want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh)
+    want = 0.8 / np.pi * interpolate(g, centre + r * nrm, nrm, np.repeat(centre[None], len(nrm), 0), bvh, lights)
     assert len(ys) > 200
     assert np.abs(img[ys, xs] - want).max() <= 0.015 * want.max()
 
@@ -772,3 +778,85 @@ def test_the_viewer_s_maps_take_the_sun_as_the_reference_does(sun_scene):
     assert m.max() > 2.0   # the sun (3 W/m^2 facing it) is in it
     got = points_irradiance(g, centre + r * nrm, nrm, seen, lights)
     assert np.allclose(got, want, rtol=1e-4, atol=1e-5)
+
+
+def test_lambert_s_formula_matches_the_lamp_s_integral():
+    """lamp_factor (E / L of one lamp triangle, unshadowed) against the
+    integral of cos_e cos_n / d^2 over the triangle (a fine midpoint rule):
+    above it, beside it, clipped by the point's horizon, behind a one-sided
+    lamp (0) and a double-sided one, and far off (the point formula)."""
+    from baker.probes.lamps import FAR, MARKS, LampArrays, _marks, lamp_factor
+    tri = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])   # its front +z
+    edges = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+
+    def lamps(double):
+        return LampArrays(tri, np.ones((1, 3)), np.array([double]), _marks(MARKS), FAR * edges, tri.mean(axis=1),
+                          np.array([0.5]), np.array([[0.0, 0, 1]]))
+
+    u = (np.arange(1500) + 0.5) / 1500
+    a, b = np.meshgrid(u, u)
+    inside = a + b < 1
+    pts = np.stack([a[inside], b[inside], np.zeros(inside.sum())], axis=1)
+
+    def integral(x, n):
+        d = pts - x
+        r = np.linalg.norm(d, axis=1)
+        w = d / r[:, None]
+        return float((np.abs(w[:, 2]) * np.maximum(w @ n, 0) / r ** 2).sum() * 0.5 / len(pts))
+
+    rng = np.random.default_rng(3)
+    cases = [(np.array([0.3, 0.3, 0.05]), np.array([0.0, 0, 1])), (np.array([1.2, 0.2, 0.1]), np.array([-1.0, 0, 0])),
+             (np.array([0.3, 0.2, 0.2]), np.array([1.0, 0, 0])),
+             (np.array([3.0, 3.0, 12.0]), -np.array([0.2, 0.3, 1]) / np.linalg.norm([0.2, 0.3, 1]))]
+    for _ in range(12):
+        n = rng.normal(size=3)
+        cases.append((np.array([rng.uniform(-0.5, 1.5), rng.uniform(-0.5, 1.5), rng.uniform(0.05, 2)]),
+                      n / np.linalg.norm(n)))
+    clipped = 0
+    for x, n in cases:
+        want = integral(x, n)
+        got = lamp_factor(lamps(False), 0, *x, *n)
+        assert abs(got - want) <= 0.005 * want + 1e-6, (x, n, got, want)
+        h = (tri[0] - x) @ n
+        clipped += bool((h > 0).any() and (h < 0).any())
+    assert clipped >= 3, clipped   # the horizon cut the triangle in several of the cases
+    behind = np.array([0.2, 0.2, -1.0])
+    assert lamp_factor(lamps(False), 0, *behind, 0.0, 0.0, 1.0) == 0.0
+    want = integral(behind, np.array([0.0, 0, 1]))
+    assert abs(lamp_factor(lamps(True), 0, *behind, 0.0, 0.0, 1.0) - want) <= 0.005 * want
+
+
+@pytest.mark.slow
+def test_the_lamp_is_exact_beside_it_not_between_probes(cornell):
+    """The Cornell lamp comes out of the probes and in at each point
+    (Lambert's formula behind its shadow rays). The box black, so that all
+    the light is the lamp's: points 1.5 cm under the ceiling, inside,
+    beside and past the lamp's edge (x = 0.343), between probes 0.1 apart,
+    against the path tracer for the 14 normals: within 8% (plus 2% of the
+    point's brightest: the normals that see no lamp read 0; all but one
+    within 2%, the one 6%: a normal that sees the lamp's edge from far out,
+    where the probes' residue, their sampled lamp less Lambert's formula,
+    about 1% of the lamp's light at a probe, stands out), where the probes
+    alone, which cannot hold the lamp's near field, are off by more than
+    half; and with the box's own colours the same points within 15%
+    (the bounced light, which this test's coarse solve holds up to 17%
+    bright under the ceiling: the per-pixel accuracy issue's)."""
+    from dataclasses import replace
+    from baker.probes.sample import probe_lights
+    from baker.scene.prepared import prepare
+    black = replace(cornell, materials=tuple(replace(m, albedo=np.zeros(3, np.float32)) for m in cornell.materials))
+    n = len(CUBE_NORMALS)
+    for scene, bound in ((black, 0.08), (cornell, 0.15)):
+        g = bake_scene(scene, small(probe_spacing=0.1)).bake.probes
+        prepared = prepare(scene)
+        lights = probe_lights(g, prepared)
+        assert lights.count == 2 and len(lights.lamps.corners) == 2
+        worst = {"exact": 0.0, "probes": 0.0}
+        for x in (0.30, 0.335, 0.35, 0.37):
+            p = np.array([x, 0.5328, 0.28])
+            want = path_traced_irradiance(prepared, p, CUBE_NORMALS, 16384, 1).sum(axis=1)
+            pts = np.repeat(p[None], n, 0)
+            for key, lt in (("exact", lights), ("probes", None)):
+                got = interpolate(g, pts, CUBE_NORMALS, pts, prepared.bvh.arrays, lt).sum(axis=1)
+                worst[key] = max(worst[key], float((np.abs(got - want) / (want + 0.02 * want.max())).max()))
+        assert worst["exact"] < bound and worst["probes"] > 0.5, (bound, worst)

@@ -22,6 +22,9 @@ import numpy as np
 WIDTH = 4096   # texels per row of the probe view's packed SH texture (shaders/probe_grid.frag)
 SURFACE_MAP = 128   # texels a side of a large sphere's map: its mean is the per-pixel sum's within 0.01% (64: 0.5%)
 MOVING_MAP = 64     # ... while it moves in the window (0.5 ms to make against 2.0-2.3), the full map once it stops
+# shadow rays to each lamp triangle from each point (a sphere's visibility map texel, a vertex): the penumbra's
+# steps. The walkthrough's 64 x 64 moving map under its eight lamp triangles: 2.7 ms with 1, 6.3 with 16
+OBJECT_LAMP_RAYS = 4
 
 
 @dataclass(frozen=True)
@@ -130,7 +133,8 @@ class ProbeObjects:
         prepared = prepared if prepared is not None else prepare(bake.scene)
         self.ctx = ctx
         self.grid = bake.probes
-        self.lights = probe_lights(self.grid, prepared)   # the sun and punctual lights, exact at each point
+        # the sun, punctual lights and lamps, exact at each point
+        self.lights = probe_lights(self.grid, prepared, OBJECT_LAMP_RAYS)
         self.vbo = ctx.buffer(sphere_mesh().tobytes())
         self.programs = {}
         self.maps = {}   # (kind, i, side) -> [texture, (centre, radius) it holds]
@@ -219,7 +223,7 @@ class DynamicMeshes:
     from the centre of its bounds (probe_seen: a mesh beside a wall lit by
     its own side); the shader interpolates it over the triangles."""
 
-    def __init__(self, ctx, bake, prepared=None):
+    def __init__(self, ctx, bake, prepared=None, interactive=False):
         from baker.errors import VoxgiError
         from baker.probes.sample import probe_lights
         from baker.scene.prepared import prepare
@@ -231,7 +235,8 @@ class DynamicMeshes:
         self.grid = bake.probes
         self.materials = bake.scene.materials
         self.bvh = prepared.bvh.arrays
-        self.lights = probe_lights(self.grid, prepared)
+        self.lights = probe_lights(self.grid, prepared, OBJECT_LAMP_RAYS)
+        self.interactive = interactive   # the window: the lamps' shadows from the mesh's centre while it moves
         self.meshes = []   # per mesh: dict of its buffers, groups and the offset its irradiance is for
         self.textures = {}
         self.programs = {}
@@ -245,7 +250,7 @@ class DynamicMeshes:
             geo = np.concatenate([d.vertices, uv], axis=1).astype(np.float32)
             r = float(np.linalg.norm(d.vertices.max(axis=0).astype(np.float64) - d.vertices.min(axis=0)) / 2)
             self.meshes.append({"mesh": d, "geo": ctx.buffer(geo.tobytes()), "index": ctx.buffer(tri.tobytes()),
-                                "irr": ctx.buffer(reserve=len(d.vertices) * 12), "groups": groups, "held": None,
+                                "irr": ctx.buffer(reserve=len(d.vertices) * 12), "groups": groups, "held": None, "coarse": False,
                                 "center": mesh_center(d), "radius": r, "textured": d.uvs is not None, "vaos": {}})
             for mi in set(int(m) for m in mids):
                 m = self.materials[mi]
@@ -268,14 +273,16 @@ class DynamicMeshes:
                                                        index_buffer=entry["index"], index_element_size=4)
         return entry["vaos"][key]
 
-    def irradiance(self, i, offset) -> np.ndarray:
-        """(nv, 3) float32: mesh i's vertices' irradiance moved by offset."""
+    def irradiance(self, i, offset, coarse=False) -> np.ndarray:
+        """(nv, 3) float32: mesh i's vertices' irradiance moved by offset;
+        coarse: the lamps' shadows from the centre of its bounds, not from
+        each vertex."""
         from baker.probes.sample import points_irradiance
         e = self.meshes[i]
         off = np.asarray(offset, np.float64)
         seen = probe_seen(self.grid, e["center"] + off, e["radius"], self.bvh)
         return points_irradiance(self.grid, e["mesh"].vertices.astype(np.float64) + off, e["mesh"].normals, seen,
-                                 self.lights)
+                                 self.lights, e["center"] + off if coarse else None)
 
     def draw(self, vp, offsets, tonemap=True, exposure=1.0):
         """Every dynamic mesh, mesh i moved by offsets[i] (3,)."""
@@ -284,9 +291,10 @@ class DynamicMeshes:
         try:
             for i, e in enumerate(self.meshes):
                 off = tuple(float(v) for v in offsets[i])
-                if e["held"] != off:
-                    e["irr"].write(np.ascontiguousarray(self.irradiance(i, off), np.float32).tobytes())
-                    e["held"] = off
+                moving = self.interactive and e["held"] is not None and e["held"] != off
+                if e["held"] != off or (e["coarse"] and not moving):
+                    e["irr"].write(np.ascontiguousarray(self.irradiance(i, off, moving), np.float32).tobytes())
+                    e["held"], e["coarse"] = off, moving
                 for mi, first, count in e["groups"]:
                     m = self.materials[mi]
                     tex = self.textures.get(mi)

@@ -209,7 +209,7 @@ class Renderer:
         if self.bake.scene.dynamic and self.bake.probes is not None and mode == "lightmap":
             if self.dynamic is None:
                 from .objects import DynamicMeshes
-                self.dynamic = DynamicMeshes(ctx, self.bake, self.prepared())
+                self.dynamic = DynamicMeshes(ctx, self.bake, self.prepared(), self.interactive)
             offsets = [(0.0, 0.0, 0.0)] * len(self.bake.scene.dynamic)
             for o in objects:
                 if isinstance(o, Placed):

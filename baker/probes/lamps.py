@@ -1,0 +1,209 @@
+"""Area lamps taken exactly at a moving object's points.
+
+A probe grid cannot hold a lamp's near field: between probes 4 cm (the
+Cornell box) or 57 cm (the walkthrough) apart, the irradiance beside a
+lamp changes by orders of magnitude, and a point 2 mm beside the Cornell
+lamp's edge read 6x its path-traced light from its probes. So, as the
+punctual lights (sample.ProbeLights), the brightest untextured emitter
+triangles come out of the probes and in at each shading point:
+
+- unshadowed, a triangle of constant radiance L gives a point x with
+  normal n exactly E = L / 2 |sum_i theta_i (g_i . n)| (Lambert's
+  formula over the triangle clipped to x's upper half-space: theta_i the
+  angle each edge subtends at x, g_i the unit normal of the plane through
+  x and that edge), 0 behind a one-sided emitter;
+- its shadow is the share of LampArrays.marks (fixed points spread over
+  the triangle) whose shadow rays from x arrive (glass tints), times the
+  unshadowed E (the ratio estimator of analytic direct light with
+  stochastic shadows: exact wherever the lamp is wholly seen or hidden).
+
+Far from the triangle (FAR times its longest edge), Lambert's formula is
+the point's A cos_e cos_n / d^2 to well under a per cent, which is what
+the kernels take there: one dot product a normal.
+
+Textured emitters stay in the probes (their radiance is not one L), as do
+all but the MAX_LAMPS brightest triangles (a glowing mesh of thousands
+would cost thousands of shadow rays a point).
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.bvh import STACK_SIZE
+from ..kernels.sampling import triangle_point
+from ..kernels.traverse import transmittance
+
+MAX_LAMPS = 64     # emitter triangles taken exactly, by power
+MARKS = 16         # points on each lamp triangle for its shadow (the first k of them for fewer rays)
+FAR = 10.0         # longest edges away, a lamp triangle is a point (Lambert's formula within ~0.5%)
+
+# corners (m, 3, 3) float64, front by the winding; radiance (m, 3) float64; double (m,) bool; marks (MARKS, 2)
+# barycentrics (b1, b2); reach (m,) float64 FAR x the longest edge; centroid (m, 3); area (m,); normal (m, 3)
+LampArrays = namedtuple("LampArrays", "corners radiance double marks reach centroid area normal")
+
+
+def _marks(count: int) -> np.ndarray:
+    """(count, 2) barycentrics: the R2 sequence mapped onto a triangle
+    (area-uniform, stratified for every prefix)."""
+    g = 1.32471795724474602596
+    i = np.arange(count) + 0.5
+    u = np.stack([(0.5 + i / g) % 1.0, (0.5 + i / (g * g)) % 1.0], axis=1)
+    out = np.empty((count, 2))
+    for k in range(count):
+        out[k] = triangle_point(u[k, 0], u[k, 1])
+    return out
+
+
+def lamp_arrays(surf=None, limit: int = MAX_LAMPS) -> LampArrays:
+    """The lamps of surfaces' arrays `surf`: its untextured emitter
+    triangles, the `limit` brightest (power, sides counted); none where
+    surf is None."""
+    if surf is None or limit <= 0 or len(surf.emitters) == 0:
+        tris = np.zeros(0, np.int64)
+    else:
+        tris = np.asarray(surf.emitters, np.int64)
+        mats = surf.tri_material[tris]
+        tris = tris[(surf.emit_offset[mats] < 0) & (surf.tri_area[tris] > 0)]
+        sides = np.where(surf.double_sided[surf.tri_material[tris]], 2.0, 1.0)
+        power = (surf.tri_emission[tris].sum(axis=1) * surf.tri_area[tris] * sides) if len(tris) else np.zeros(0)
+        tris = tris[np.argsort(-power, kind="stable")[:limit]]
+    if len(tris) == 0:
+        return LampArrays(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, np.bool_), _marks(MARKS), np.zeros(0),
+                          np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    corners = np.ascontiguousarray(surf.corners[tris], np.float64)
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+    return LampArrays(corners, np.ascontiguousarray(surf.emission[surf.tri_material[tris]], np.float64),
+                      np.ascontiguousarray(surf.double_sided[surf.tri_material[tris]], np.bool_), _marks(MARKS),
+                      FAR * edges, corners.mean(axis=1), np.ascontiguousarray(surf.tri_area[tris], np.float64),
+                      np.ascontiguousarray(surf.tri_normal[tris], np.float64))
+
+
+@njit(cache=True, inline="always")
+def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
+    """theta (unit(a x b) . n) for the edge from a to b seen from the
+    origin (a, b any lengths): theta / |a x b| times (a x b) . n, which
+    stays finite as the edge shrinks to a point."""
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    s = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if s <= 1e-300:
+        return 0.0
+    th = math.atan2(s, ax * bx + ay * by + az * bz)
+    return th / s * (cx * nx + cy * ny + cz * nz)
+
+
+@njit(cache=True, inline="always")
+def lamp_factor(lamps, t, x, y, z, nx, ny, nz):
+    """E / L of lamp triangle t at point (x, y, z) with unit normal n,
+    unshadowed: Lambert's formula over the triangle clipped to the point's
+    upper half-space (a point's A cos_e cos_n / d^2 beyond its reach); 0
+    behind a one-sided lamp."""
+    cx, cy, cz = lamps.centroid[t, 0] - x, lamps.centroid[t, 1] - y, lamps.centroid[t, 2] - z
+    side = -(lamps.normal[t, 0] * cx + lamps.normal[t, 1] * cy + lamps.normal[t, 2] * cz)   # > 0: in front
+    if side <= 0.0 and not lamps.double[t]:
+        return 0.0
+    d2 = cx * cx + cy * cy + cz * cz
+    if d2 > lamps.reach[t] * lamps.reach[t]:
+        cn = nx * cx + ny * cy + nz * cz
+        if cn <= 0.0:
+            return 0.0
+        return lamps.area[t] * abs(side) * cn / (d2 * d2)
+    # Lambert's sum over the triangle clipped by the plane n . (p - x) = 0, edge by edge: a kept edge (or the
+    # kept part of a cut one) adds its term; the horizon closes the polygon from where it leaves to where it
+    # comes back (a plane cuts a triangle's boundary twice at most). No arrays: it runs per texel and lamp.
+    total = 0.0
+    ex = ey = ez = 0.0   # where the boundary goes below the horizon
+    ix = iy = iz = 0.0   # where it comes back above
+    cut = False
+    for k in range(3):
+        j = (k + 1) % 3
+        ax, ay, az = lamps.corners[t, k, 0] - x, lamps.corners[t, k, 1] - y, lamps.corners[t, k, 2] - z
+        bx, by, bz = lamps.corners[t, j, 0] - x, lamps.corners[t, j, 1] - y, lamps.corners[t, j, 2] - z
+        ha = ax * nx + ay * ny + az * nz
+        hb = bx * nx + by * ny + bz * nz
+        if ha >= 0.0 and hb >= 0.0:
+            total += _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz)
+        elif ha >= 0.0 or hb >= 0.0:
+            s = ha / (ha - hb)
+            px, py, pz = ax + s * (bx - ax), ay + s * (by - ay), az + s * (bz - az)
+            cut = True
+            if ha >= 0.0:
+                total += _edge_term(ax, ay, az, px, py, pz, nx, ny, nz)
+                ex, ey, ez = px, py, pz
+            else:
+                total += _edge_term(px, py, pz, bx, by, bz, nx, ny, nz)
+                ix, iy, iz = px, py, pz
+        else:
+            cut = True
+    if cut:
+        total += _edge_term(ex, ey, ez, ix, iy, iz, nx, ny, nz)
+    return 0.5 * abs(total)
+
+
+@njit(cache=True, inline="always")
+def lamp_above(lamps, t, x, y, z, nx, ny, nz):
+    """Whether lamp triangle t can light (x, y, z) with normal n at all:
+    a corner above its tangent plane, and the point before a one-sided
+    lamp (lamp_factor > 0 but for a lamp seen edge-on)."""
+    cx, cy, cz = lamps.centroid[t, 0] - x, lamps.centroid[t, 1] - y, lamps.centroid[t, 2] - z
+    if not lamps.double[t] and lamps.normal[t, 0] * cx + lamps.normal[t, 1] * cy + lamps.normal[t, 2] * cz >= 0.0:
+        return False
+    for k in range(3):
+        if (lamps.corners[t, k, 0] - x) * nx + (lamps.corners[t, k, 1] - y) * ny \
+                + (lamps.corners[t, k, 2] - z) * nz > 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def lamp_sees(bvh, stack, lamps, t, x, y, z, rays):
+    """(r, g, b): the mean transmittance of the shadow rays from (x, y, z)
+    to the first `rays` marks on lamp triangle t (stopped short of it: its
+    own triangle is not in the way)."""
+    s0 = s1 = s2 = 0.0
+    for j in range(rays):
+        b1, b2 = lamps.marks[j, 0], lamps.marks[j, 1]
+        b0 = 1.0 - b1 - b2
+        dx = b0 * lamps.corners[t, 0, 0] + b1 * lamps.corners[t, 1, 0] + b2 * lamps.corners[t, 2, 0] - x
+        dy = b0 * lamps.corners[t, 0, 1] + b1 * lamps.corners[t, 1, 1] + b2 * lamps.corners[t, 2, 1] - y
+        dz = b0 * lamps.corners[t, 0, 2] + b1 * lamps.corners[t, 1, 2] + b2 * lamps.corners[t, 2, 2] - z
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if dist <= 0.0:
+            s0 += 1.0
+            s1 += 1.0
+            s2 += 1.0
+            continue
+        t0, t1, t2 = transmittance(bvh, stack, x, y, z, dx / dist, dy / dist, dz / dist, 0.0, dist * (1.0 - 1e-6))
+        s0 += t0
+        s1 += t1
+        s2 += t2
+    return s0 / rays, s1 / rays, s2 / rays
+
+
+@njit(cache=True, parallel=True)
+def lamps_rest(bvh, lamps, points, texdirs, rays, irr, out):
+    """out[i] = irr[i] (S, S, 3) less each lamp's light at probe points[i]
+    for the normals texdirs (S^2, 3): what the probe holds once the lamps
+    are put back at each shading point (each probe its own: any thread
+    count gives the same bits)."""
+    size = irr.shape[1]
+    for i in prange(points.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for r in range(size):
+            for c in range(size):
+                for ch in range(3):
+                    out[i, r, c, ch] = irr[i, r, c, ch]
+        for t in range(lamps.corners.shape[0]):
+            v0, v1, v2 = lamp_sees(bvh, stack, lamps, t, x, y, z, rays)
+            if v0 == 0.0 and v1 == 0.0 and v2 == 0.0:
+                continue
+            for q in range(texdirs.shape[0]):
+                f = lamp_factor(lamps, t, x, y, z, texdirs[q, 0], texdirs[q, 1], texdirs[q, 2])
+                if f > 0.0:
+                    out[i, q // size, q % size, 0] -= lamps.radiance[t, 0] * f * v0
+                    out[i, q // size, q % size, 1] -= lamps.radiance[t, 1] * f * v1
+                    out[i, q // size, q % size, 2] -= lamps.radiance[t, 2] * f * v2
