@@ -319,3 +319,70 @@ def test_a_dynamic_mesh_with_a_nan_vertex_is_refused(tmp_path):
     with pytest.raises(SceneError, match="dynamic mesh 'prop': vertices or position not finite") as e:
         load_scene(path, dynamic=("prop",))
     assert "\n" not in e.value.one_line() and "nan_prop.gltf" in e.value.one_line()
+
+
+def test_a_moving_mesh_takes_the_lamp_s_shadow_from_its_centre_until_it_stops(tmp_path, gl):
+    """A ball under a lamp, half of it in the shadow of a plate whose edge
+    lies over its centre. Each vertex's lamp light, with its shadow rays
+    from the vertex, is interpolate's (the reference) exactly; in the
+    window, while the ball moves, the lamp's shadow rays are traced once
+    from its centre (half the lamp seen there: the shadowed side reads
+    the lamp half lit), and the first frame it stands still from each
+    vertex again. The sphere object's moving map likewise."""
+    from baker.probes import interpolate
+    from baker.scene.gltf_write import GltfBuilder
+    from scenes.generate import box, quad
+    from viewer.objects import DynamicMeshes
+    b = GltfBuilder()
+    grey = b.material("grey", (0.5, 0.5, 0.5))
+    b.mesh("floor", *quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), facing=(0, 1, 0)), grey)
+    b.mesh("lamp", *quad((-0.3, 2, -0.3), (0.3, 2, -0.3), (0.3, 2, 0.3), (-0.3, 2, 0.3), facing=(0, -1, 0)),
+           b.material("lamp", (0.0, 0.0, 0.0), emission=(10.0, 10.0, 10.0)))
+    b.mesh("plate", *box((-2, 1.0, -2), (0.0, 1.02, 2)), grey)
+    b.camera("cam", (0, 1.2, 3), (0, -0.3, -1))
+    r = 0.3
+    add_ball(b, centre=(0.0, 0.4, 0.0), radius=r, albedo=0.8, subdiv=3)
+    src = tmp_path / "lamp_ball.glb"
+    b.save(str(src))
+    out = tmp_path / "lamp_ball_bake.glb"
+    write_bake(str(out), bake_scene(load_scene(src, dynamic=("ball",)), small(probe_spacing=0.5)).bake)
+    bake = read_bake(str(out))
+    meshes = DynamicMeshes(gl, bake, interactive=True)
+    e = meshes.meshes[0]
+    assert len(meshes.lights.lamps.corners) == 2
+
+    def held():
+        return np.frombuffer(e["irr"].read(), np.float32).reshape(-1, 3).astype(np.float64)
+
+    verts = bake.scene.dynamic[0].vertices.astype(np.float64)
+    normals = bake.scene.dynamic[0].normals.astype(np.float64)
+    off = np.array([0.01, 0.0, 0.0])
+    meshes.update(0, (0.0, 0.0, 0.0))
+    assert not e["coarse"]
+    meshes.update(0, off)
+    assert e["coarse"]
+    coarse = held()
+    meshes.update(0, off)
+    assert not e["coarse"]
+    exact = held()
+    centre = e["center"] + off
+    want = interpolate(bake.probes, verts + off, normals, np.repeat(centre[None], len(verts), 0),
+                       meshes.bvh, meshes.lights)
+    assert np.allclose(exact, want, rtol=1e-4, atol=1e-5)
+    shadowed = (verts[:, 0] < -0.5 * r) & (normals[:, 1] > 0.5)   # up-facing, under the plate
+    lit = (verts[:, 0] > 0.5 * r) & (normals[:, 1] > 0.5)
+    assert shadowed.sum() > 5 and lit.sum() > 5
+    assert exact[lit].mean() > 5 * exact[shadowed].mean()
+    assert coarse[shadowed].mean() > 2 * exact[shadowed].mean()
+    meshes.release()
+    # the sphere object the same: its moving map takes the lamp's shadow from its centre
+    from baker.probes.gather import texel_directions
+    from baker.probes.sample import sphere_map
+    from viewer.objects import probe_seen
+    seen = probe_seen(bake.probes, centre, r, meshes.bvh)
+    full, moving = (sphere_map(bake.probes, centre, r, seen, 16, meshes.lights, coarse=c).reshape(-1, 3)
+                    for c in (False, True))
+    n = texel_directions(16)
+    shadowed, lit = (n[:, 0] < -0.5) & (n[:, 1] > 0.5), (n[:, 0] > 0.5) & (n[:, 1] > 0.5)
+    assert full[lit].mean() > 5 * full[shadowed].mean()
+    assert moving[shadowed].mean() > 2 * full[shadowed].mean()

@@ -174,7 +174,8 @@ class ProbeObjects:
         the probes' map size); larger: the per-point sum at each of
         SURFACE_MAP squared normals' points (sphere_map), its probes masked
         by what its centre sees; in the window MOVING_MAP squared while it
-        moves, the full map the first frame it stands still. Each map
+        moves (the lamps' shadows from its centre), the full map the first
+        frame it stands still. Each map
         texture lives as long as the viewer, rewritten when the object
         moves (a texture made and freed each frame stalled llvmpipe). The
         map is made on the CPU: a GPU pass into a texture the same frame
@@ -184,6 +185,7 @@ class ProbeObjects:
         from baker.probes.sample import object_map, sphere_map
         kind = "blended" if s.radius <= self.grid.spacing else "surface"
         key = (tuple(s.center), float(s.radius))
+        moving = False
         if kind == "blended":
             size = self.grid.irradiance.shape[1]
         else:
@@ -201,7 +203,7 @@ class ProbeObjects:
                 m = object_map(self.grid, s.center, self.bvh, self.lights)
             else:
                 m = sphere_map(self.grid, s.center, s.radius, probe_seen(self.grid, s.center, s.radius, self.bvh),
-                               size, self.lights)
+                               size, self.lights, coarse=moving)
             tex.write(bordered(m).tobytes())
             self.maps[(kind, i, size)][1] = key
         self.shown[(kind, i)] = (size, key)
@@ -284,17 +286,26 @@ class DynamicMeshes:
         return points_irradiance(self.grid, e["mesh"].vertices.astype(np.float64) + off, e["mesh"].normals, seen,
                                  self.lights, e["center"] + off if coarse else None)
 
+    def update(self, i, offset) -> tuple:
+        """Mesh i's irradiance buffer for `offset` (3,), remade where it
+        moved: in the window, with the lamps' shadows from its centre
+        while it moves (coarse) and from each vertex the first frame it
+        stands still. The offset as a tuple of floats."""
+        e = self.meshes[i]
+        off = tuple(float(v) for v in offset)
+        moving = self.interactive and e["held"] is not None and e["held"] != off
+        if e["held"] != off or (e["coarse"] and not moving):
+            e["irr"].write(np.ascontiguousarray(self.irradiance(i, off, moving), np.float32).tobytes())
+            e["held"], e["coarse"] = off, moving
+        return off
+
     def draw(self, vp, offsets, tonemap=True, exposure=1.0):
         """Every dynamic mesh, mesh i moved by offsets[i] (3,)."""
         import moderngl
         self.ctx.disable(moderngl.CULL_FACE)   # the file's two-sidedness is not kept for them: show both faces
         try:
             for i, e in enumerate(self.meshes):
-                off = tuple(float(v) for v in offsets[i])
-                moving = self.interactive and e["held"] is not None and e["held"] != off
-                if e["held"] != off or (e["coarse"] and not moving):
-                    e["irr"].write(np.ascontiguousarray(self.irradiance(i, off, moving), np.float32).tobytes())
-                    e["held"], e["coarse"] = off, moving
+                off = self.update(i, offsets[i])
                 for mi, first, count in e["groups"]:
                     m = self.materials[mi]
                     tex = self.textures.get(mi)

@@ -423,20 +423,34 @@ def _sphere_map(irr, depth, seen, origin, spacing, dims, center, radius, lights,
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _sphere_visibility(bvh, lights, lamps, rays, center, radius, out):
+def _sphere_visibility(bvh, lights, lamps, rays, center, radius, from_center, out):
     """out (S, S, L, 3): the transmittance towards each light (then each
     lamp, over `rays` shadow rays) from the sphere's point at each texel
-    normal of an S x S octahedral map."""
+    normal of an S x S octahedral map; from_center: the lamps' from the
+    centre, the same at every texel."""
     size = out.shape[0]
     stack = np.empty(STACK_SIZE, np.int32)
     x = np.empty(3)
     nn = np.empty(3)
+    n_punctual = lights.light_kind.shape[0]
     n_lights = out.shape[2]
     vr, vg, vb = np.empty(n_lights), np.empty(n_lights), np.empty(n_lights)
+    cr, cg, cb = np.empty(n_lights), np.empty(n_lights), np.empty(n_lights)
+    if from_center:
+        for t in range(lamps.corners.shape[0]):
+            cr[n_punctual + t], cg[n_punctual + t], cb[n_punctual + t] = lamp_sees(
+                bvh, stack, lamps, t, center[0], center[1], center[2], rays)
+    no_lamps = LampArrays(lamps.corners[:0], lamps.radiance[:0], lamps.double[:0], lamps.marks, lamps.reach[:0],
+                          lamps.centroid[:0], lamps.area[:0], lamps.normal[:0])
     for row in range(size):
         for col in range(size):
             _sphere_point(row, col, size, center, radius, x, nn)
-            _sees_lights(bvh, lights, lamps, rays, stack, x, nn, 0.0, vr, vg, vb)
+            if from_center:
+                _sees_lights(bvh, lights, no_lamps, rays, stack, x, nn, 0.0, vr, vg, vb)
+                for li in range(n_punctual, n_lights):
+                    vr[li], vg[li], vb[li] = cr[li], cg[li], cb[li]
+            else:
+                _sees_lights(bvh, lights, lamps, rays, stack, x, nn, 0.0, vr, vg, vb)
             for li in range(n_lights):
                 out[row, col, li, 0], out[row, col, li, 1], out[row, col, li, 2] = vr[li], vg[li], vb[li]
 
@@ -603,7 +617,7 @@ def _maps(grid, lights):
 VISIBILITY_MAP = 16   # normals a side of a large sphere's light-visibility map (bilinear between them)
 
 
-def sphere_map(grid, center, radius, seen, size, lights: ProbeLights | None = None) -> np.ndarray:
+def sphere_map(grid, center, radius, seen, size, lights: ProbeLights | None = None, coarse=False) -> np.ndarray:
     """(size, size, 3) float32: the irradiance over a sphere's surface as
     an octahedral map of its normals: texel n holds interpolate at the
     point center + radius n with normal n, the probes weighted by
@@ -615,13 +629,15 @@ def sphere_map(grid, center, radius, seen, size, lights: ProbeLights | None = No
     larger than a probe cell with, one read a pixel. With `lights`, the
     punctual lights and the sun come out of the probes and in at each
     point, their visibility from a VISIBILITY_MAP squared map of the
-    sphere's points (shadow rays) read bilinearly. One thread: it runs
-    every frame an object moves, beside the viewer's software rasterizer."""
+    sphere's points (shadow rays) read bilinearly; coarse: the lamps'
+    shadow rays traced once from the centre instead (the window's moving
+    sphere). One thread: it runs every frame an object moves, beside the
+    viewer's software rasterizer."""
     out = np.zeros((size, size, 3), np.float32)
     if lights is not None and lights.count:
         vis = np.zeros((VISIBILITY_MAP, VISIBILITY_MAP, lights.count, 3))
         _sphere_visibility(lights.bvh, lights.lights, lights.lamps, lights.rays, np.asarray(center, np.float64),
-                           float(radius), vis)
+                           float(radius), bool(coarse), vis)
         arrays, lamps = lights.lights, lights.lamps
     else:
         vis, arrays, lamps = np.zeros((1, 1, 0, 3)), light_arrays(), lamp_arrays()
