@@ -17,9 +17,11 @@ triangles come out of the probes and in at each shading point:
   unshadowed E (the ratio estimator of analytic direct light with
   stochastic shadows: exact wherever the lamp is wholly seen or hidden).
 
-Far from the triangle (FAR times its longest edge), Lambert's formula is
-the point's A cos_e cos_n / d^2 to well under a per cent, which is what
-the kernels take there: one dot product a normal.
+Farther than FAR times its longest edge, the kernels take the triangle
+as a point, A cos_e cos_n / d^2; between MID and FAR times, as the four
+points of its halved-edge quarters: each within 0.8% of the triangle's
+peak A cos_e / d^2 there (against Lambert's formula, tests/test_probes.py),
+for one or four dot products a normal instead of four arc tangents.
 
 Textured emitters stay in the probes (their radiance is not one L), as do
 all but the MAX_LAMPS brightest triangles (a glowing mesh of thousands
@@ -39,11 +41,14 @@ from ..kernels.traverse import transmittance
 
 MAX_LAMPS = 64     # emitter triangles taken exactly, by power
 MARKS = 16         # points on each lamp triangle for its shadow (the first k of them for fewer rays)
-FAR = 10.0         # longest edges away, a lamp triangle is a point (Lambert's formula within ~0.5%)
+FAR = 5.0          # longest edges away, a lamp triangle is a point
+MID = 2.5          # ... and from here to FAR the four centroids of its quarters
 
-# corners (m, 3, 3) float64, front by the winding; radiance (m, 3) float64; double (m,) bool; marks (MARKS, 2)
-# barycentrics (b1, b2); reach (m,) float64 FAR x the longest edge; centroid (m, 3); area (m,); normal (m, 3)
-LampArrays = namedtuple("LampArrays", "corners radiance double marks reach centroid area normal")
+# corners (m, 3, 3) float64, front by the winding; radiance (m, 3) float64; double (m,) float64 1 where
+# double-sided, else 0; marks (MARKS, 2)
+# barycentrics (b1, b2); edge (m,) float64 the longest edge; centroid (m, 3); area (m,); normal (m, 3);
+# quarters (m, 3, 3) the centroids of the three corner quarters (the middle one's is the triangle's)
+LampArrays = namedtuple("LampArrays", "corners radiance double marks edge centroid area normal quarters")
 
 
 def _marks(count: int) -> np.ndarray:
@@ -72,14 +77,31 @@ def lamp_arrays(surf=None, limit: int = MAX_LAMPS) -> LampArrays:
         power = (surf.tri_emission[tris].sum(axis=1) * surf.tri_area[tris] * sides) if len(tris) else np.zeros(0)
         tris = tris[np.argsort(-power, kind="stable")[:limit]]
     if len(tris) == 0:
-        return LampArrays(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, np.bool_), _marks(MARKS), np.zeros(0),
-                          np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
-    corners = np.ascontiguousarray(surf.corners[tris], np.float64)
-    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
-    return LampArrays(corners, np.ascontiguousarray(surf.emission[surf.tri_material[tris]], np.float64),
-                      np.ascontiguousarray(surf.double_sided[surf.tri_material[tris]], np.bool_), _marks(MARKS),
-                      FAR * edges, corners.mean(axis=1), np.ascontiguousarray(surf.tri_area[tris], np.float64),
-                      np.ascontiguousarray(surf.tri_normal[tris], np.float64))
+        return lamps_of(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
+    mats = surf.tri_material[tris]
+    return lamps_of(surf.corners[tris], surf.emission[mats], surf.double_sided[mats])
+
+
+def lamps_of(corners, radiance, double) -> LampArrays:
+    """LampArrays of triangles corners (m, 3, 3) (front by the winding)
+    emitting radiance (m, 3), double-sided where double (m,)."""
+    corners = np.ascontiguousarray(corners, np.float64).reshape(-1, 3, 3)
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1) if len(corners) \
+        else np.zeros(0)
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    twice = np.linalg.norm(cross, axis=1)
+    normal = cross / np.where(twice > 0, twice, 1.0)[:, None]
+    return LampArrays(corners, np.ascontiguousarray(radiance, np.float64).reshape(-1, 3),
+                      np.ascontiguousarray(double, np.float64).reshape(-1), _marks(MARKS), edges,
+                      np.ascontiguousarray(corners.mean(axis=1)), 0.5 * twice, np.ascontiguousarray(normal),
+                      quarters(corners))
+
+
+def quarters(corners) -> np.ndarray:
+    """(m, 3, 3): the centroid of each corner's quarter of each triangle
+    (halved edges): (4 a + b + c) / 6 for corner a."""
+    c = np.asarray(corners, np.float64)
+    return np.ascontiguousarray((3 * c + c.sum(axis=1, keepdims=True)) / 6)
 
 
 @njit(cache=True, inline="always")
@@ -96,21 +118,41 @@ def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
 
 
 @njit(cache=True, inline="always")
+def _point_term(mx, my, mz, double, cx, cy, cz, nx, ny, nz):
+    """cos_e cos_n / d^2 of a point at c (from the shading point) on a lamp
+    of unit normal m for normal n; 0 below the horizon or behind a one-sided
+    lamp (double 0). Branchless: it runs per texel and lamp."""
+    cn = max(nx * cx + ny * cy + nz * cz, 0.0)
+    side = -(mx * cx + my * cy + mz * cz)
+    side = max(side, -double * side)
+    d2 = cx * cx + cy * cy + cz * cz
+    return side * cn / (d2 * d2)
+
+
+@njit(cache=True, inline="always")
 def lamp_factor(lamps, t, x, y, z, nx, ny, nz):
     """E / L of lamp triangle t at point (x, y, z) with unit normal n,
     unshadowed: Lambert's formula over the triangle clipped to the point's
-    upper half-space (a point's A cos_e cos_n / d^2 beyond its reach); 0
-    behind a one-sided lamp."""
+    upper half-space (as one point beyond FAR of its longest edges, four
+    beyond MID); 0 behind a one-sided lamp."""
+    # every field read before any branch: a namedtuple's array first read inside a branch of an inlined kernel
+    # cost 90 ns a call here (numba 0.68), against 1-7 ns
+    corners, quarters, double = lamps.corners, lamps.quarters, lamps.double[t]
+    mx, my, mz = lamps.normal[t, 0], lamps.normal[t, 1], lamps.normal[t, 2]
+    area, edge = lamps.area[t], lamps.edge[t]
     cx, cy, cz = lamps.centroid[t, 0] - x, lamps.centroid[t, 1] - y, lamps.centroid[t, 2] - z
-    side = -(lamps.normal[t, 0] * cx + lamps.normal[t, 1] * cy + lamps.normal[t, 2] * cz)   # > 0: in front
-    if side <= 0.0 and not lamps.double[t]:
+    side = -(mx * cx + my * cy + mz * cz)   # > 0: in front
+    if side <= 0.0 and double == 0.0:
         return 0.0
     d2 = cx * cx + cy * cy + cz * cz
-    if d2 > lamps.reach[t] * lamps.reach[t]:
-        cn = nx * cx + ny * cy + nz * cz
-        if cn <= 0.0:
-            return 0.0
-        return lamps.area[t] * abs(side) * cn / (d2 * d2)
+    if d2 > FAR * FAR * edge * edge:
+        return area * _point_term(mx, my, mz, double, cx, cy, cz, nx, ny, nz)
+    if d2 > MID * MID * edge * edge:
+        f = _point_term(mx, my, mz, double, cx, cy, cz, nx, ny, nz)
+        for k in range(3):
+            f += _point_term(mx, my, mz, double, quarters[t, k, 0] - x, quarters[t, k, 1] - y, quarters[t, k, 2] - z,
+                             nx, ny, nz)
+        return 0.25 * area * f
     # Lambert's sum over the triangle clipped by the plane n . (p - x) = 0, edge by edge: a kept edge (or the
     # kept part of a cut one) adds its term; the horizon closes the polygon from where it leaves to where it
     # comes back (a plane cuts a triangle's boundary twice at most). No arrays: it runs per texel and lamp.
@@ -120,8 +162,8 @@ def lamp_factor(lamps, t, x, y, z, nx, ny, nz):
     cut = False
     for k in range(3):
         j = (k + 1) % 3
-        ax, ay, az = lamps.corners[t, k, 0] - x, lamps.corners[t, k, 1] - y, lamps.corners[t, k, 2] - z
-        bx, by, bz = lamps.corners[t, j, 0] - x, lamps.corners[t, j, 1] - y, lamps.corners[t, j, 2] - z
+        ax, ay, az = corners[t, k, 0] - x, corners[t, k, 1] - y, corners[t, k, 2] - z
+        bx, by, bz = corners[t, j, 0] - x, corners[t, j, 1] - y, corners[t, j, 2] - z
         ha = ax * nx + ay * ny + az * nz
         hb = bx * nx + by * ny + bz * nz
         if ha >= 0.0 and hb >= 0.0:
@@ -148,12 +190,12 @@ def lamp_above(lamps, t, x, y, z, nx, ny, nz):
     """Whether lamp triangle t can light (x, y, z) with normal n at all:
     a corner above its tangent plane, and the point before a one-sided
     lamp (lamp_factor > 0 but for a lamp seen edge-on)."""
+    corners, double = lamps.corners, lamps.double[t]
     cx, cy, cz = lamps.centroid[t, 0] - x, lamps.centroid[t, 1] - y, lamps.centroid[t, 2] - z
-    if not lamps.double[t] and lamps.normal[t, 0] * cx + lamps.normal[t, 1] * cy + lamps.normal[t, 2] * cz >= 0.0:
+    if double == 0.0 and lamps.normal[t, 0] * cx + lamps.normal[t, 1] * cy + lamps.normal[t, 2] * cz >= 0.0:
         return False
     for k in range(3):
-        if (lamps.corners[t, k, 0] - x) * nx + (lamps.corners[t, k, 1] - y) * ny \
-                + (lamps.corners[t, k, 2] - z) * nz > 0.0:
+        if (corners[t, k, 0] - x) * nx + (corners[t, k, 1] - y) * ny + (corners[t, k, 2] - z) * nz > 0.0:
             return True
     return False
 
