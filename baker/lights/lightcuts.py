@@ -150,11 +150,17 @@ def triangle_cosine(surf, tri, px, py, pz, nx, ny, nz):
     (Sutherland-Hodgman) and integrated by Lambert's formula,
     |sum over its edges of angle x cos| / 2: pi times the form factor,
     exact at any distance."""
+    return corners_cosine(surf.corners, tri, px, py, pz, nx, ny, nz)
+
+
+@njit(cache=True, inline="always")
+def corners_cosine(c, tri, px, py, pz, nx, ny, nz):
+    """triangle_cosine of triangle `tri` of corners c (n, 3, 3), inlined
+    where it runs per texel (the irradiance probes' lamps)."""
     acc = 0.0
     count = 0
     fx = fy = fz = 0.0   # the clipped polygon's first vertex, and the last one emitted
     lx = ly = lz = 0.0
-    c = surf.corners
     for k in range(3):
         k2 = (k + 1) % 3
         qx, qy, qz = c[tri, k, 0] - px, c[tri, k, 1] - py, c[tri, k, 2] - pz

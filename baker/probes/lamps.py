@@ -11,7 +11,8 @@ triangles come out of the probes and in at each shading point:
   normal n exactly E = L / 2 |sum_i theta_i (g_i . n)| (Lambert's
   formula over the triangle clipped to x's upper half-space: theta_i the
   angle each edge subtends at x, g_i the unit normal of the plane through
-  x and that edge), 0 behind a one-sided emitter;
+  x and that edge: lights/lightcuts.corners_cosine, the same sum the
+  bake's texels take for the emitters), 0 behind a one-sided emitter;
 - its shadow is the share of LampArrays.marks (fixed points spread over
   the triangle) whose shadow rays from x arrive (glass tints), times the
   unshadowed E (the ratio estimator of analytic direct light with
@@ -38,6 +39,7 @@ from numba import njit, prange
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.sampling import triangle_point
 from ..kernels.traverse import transmittance
+from ..lights.lightcuts import corners_cosine
 
 MAX_LAMPS = 64     # emitter triangles taken exactly, by power
 MARKS = 16         # points on each lamp triangle for its shadow (the first k of them for fewer rays)
@@ -105,19 +107,6 @@ def quarters(corners) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz):
-    """theta (unit(a x b) . n) for the edge from a to b seen from the
-    origin (a, b any lengths): theta / |a x b| times (a x b) . n, which
-    stays finite as the edge shrinks to a point."""
-    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    s = math.sqrt(cx * cx + cy * cy + cz * cz)
-    if s <= 1e-300:
-        return 0.0
-    th = math.atan2(s, ax * bx + ay * by + az * bz)
-    return th / s * (cx * nx + cy * ny + cz * nz)
-
-
-@njit(cache=True, inline="always")
 def _point_term(mx, my, mz, double, cx, cy, cz, nx, ny, nz):
     """cos_e cos_n / d^2 of a point at c (from the shading point) on a lamp
     of unit normal m for normal n; 0 below the horizon or behind a one-sided
@@ -133,8 +122,8 @@ def _point_term(mx, my, mz, double, cx, cy, cz, nx, ny, nz):
 def lamp_factor(lamps, t, x, y, z, nx, ny, nz):
     """E / L of lamp triangle t at point (x, y, z) with unit normal n,
     unshadowed: Lambert's formula over the triangle clipped to the point's
-    upper half-space (as one point beyond FAR of its longest edges, four
-    beyond MID); 0 behind a one-sided lamp."""
+    upper half-space (corners_cosine; as one point beyond FAR of its
+    longest edges, four beyond MID); 0 behind a one-sided lamp."""
     # every field read before any branch: a namedtuple's array first read inside a branch of an inlined kernel
     # cost 90 ns a call here (numba 0.68), against 1-7 ns
     corners, quarters, double = lamps.corners, lamps.quarters, lamps.double[t]
@@ -153,36 +142,7 @@ def lamp_factor(lamps, t, x, y, z, nx, ny, nz):
             f += _point_term(mx, my, mz, double, quarters[t, k, 0] - x, quarters[t, k, 1] - y, quarters[t, k, 2] - z,
                              nx, ny, nz)
         return 0.25 * area * f
-    # Lambert's sum over the triangle clipped by the plane n . (p - x) = 0, edge by edge: a kept edge (or the
-    # kept part of a cut one) adds its term; the horizon closes the polygon from where it leaves to where it
-    # comes back (a plane cuts a triangle's boundary twice at most). No arrays: it runs per texel and lamp.
-    total = 0.0
-    ex = ey = ez = 0.0   # where the boundary goes below the horizon
-    ix = iy = iz = 0.0   # where it comes back above
-    cut = False
-    for k in range(3):
-        j = (k + 1) % 3
-        ax, ay, az = corners[t, k, 0] - x, corners[t, k, 1] - y, corners[t, k, 2] - z
-        bx, by, bz = corners[t, j, 0] - x, corners[t, j, 1] - y, corners[t, j, 2] - z
-        ha = ax * nx + ay * ny + az * nz
-        hb = bx * nx + by * ny + bz * nz
-        if ha >= 0.0 and hb >= 0.0:
-            total += _edge_term(ax, ay, az, bx, by, bz, nx, ny, nz)
-        elif ha >= 0.0 or hb >= 0.0:
-            s = ha / (ha - hb)
-            px, py, pz = ax + s * (bx - ax), ay + s * (by - ay), az + s * (bz - az)
-            cut = True
-            if ha >= 0.0:
-                total += _edge_term(ax, ay, az, px, py, pz, nx, ny, nz)
-                ex, ey, ez = px, py, pz
-            else:
-                total += _edge_term(px, py, pz, bx, by, bz, nx, ny, nz)
-                ix, iy, iz = px, py, pz
-        else:
-            cut = True
-    if cut:
-        total += _edge_term(ex, ey, ez, ix, iy, iz, nx, ny, nz)
-    return 0.5 * abs(total)
+    return corners_cosine(corners, t, x, y, z, nx, ny, nz)
 
 
 @njit(cache=True, inline="always")
