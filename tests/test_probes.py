@@ -822,6 +822,13 @@ def test_lambert_s_formula_matches_the_lamp_s_integral():
     assert lamp_factor(lamps(False), 0, *behind, 0.0, 0.0, 1.0) == 0.0
     want = integral(behind, np.array([0.0, 0, 1]))
     assert abs(lamp_factor(lamps(True), 0, *behind, 0.0, 0.0, 1.0) - want) <= 0.005 * want
+    # on the lamp's corner, edge, plane and centre, a sliver of a triangle: finite, never negative
+    sliver = lamps_of(np.array([[[0.0, 0, 0], [1, 0, 0], [0.5, 1e-12, 0]]]), np.ones((1, 3)), np.array([0.0]))
+    for lamp in (lamps(False), lamps(True), sliver):
+        for x in ((0.0, 0, 0), (0.5, 0, 0), (0.3, 0.3, 0), (2.0, 2.0, 0), (0.25, 0.25, 1e-15)):
+            for n in ((0.0, 0, 1), (0.0, 0, -1), (1.0, 0, 0)):
+                f = lamp_factor(lamp, 0, *x, *n)
+                assert np.isfinite(f) and f >= 0, (x, n, f)
     # farther off, four points (from MID longest edges) and one (from FAR): within 1% of the lamp's peak there,
     # A cos_e / d^2, whatever the normal (near its horizon the value itself is small)
     from baker.probes.lamps import FAR, MID
