@@ -9,11 +9,7 @@ they hit, through thin glass tinted) where they land and the sky where
 they escape; the area emitters are sampled (EMITTER_SAMPLES points by
 power, stratified, each behind a shadow ray) and, with the punctual
 lights and the sun, added as the deltas they are (a small lamp seen by a
-few uniform rays would be noise). In the irradiance maps the lamps
-(lamps.py: the brightest untextured emitter triangles) are then exact:
-their sampled share out, Lambert's formula behind PROBE_LAMP_RAYS shadow
-rays in, the same sum the viewer takes out of each probe to put the
-lamps back at each shading point. The rays are a spherical Fibonacci
+few uniform rays would be noise). The rays are a spherical Fibonacci
 set (ray_set), the same for every probe: quasi-uniform, so the sums
 over them converge far faster than a Monte-Carlo estimate (a constant
 radiance's irradiance within 0.07% at 768 rays).
@@ -53,7 +49,6 @@ from ..kernels.traverse import closest_hit, hit_normal, transmittance
 from ..scene.surfaces import (LIGHT_DIRECTIONAL, LIGHT_SPOT, emission_at, sample_emitter, sky_radiance, spot_falloff,
                               triangle_normal)
 from ..solve.gather import GAP_STOP, GLASS_LAYERS, _read_at
-from .lamps import PROBE_LAMP_RAYS, lamp_arrays, lamp_factor, lamp_sees
 
 SH = 9            # coefficients per channel (order 2)
 IRR = 25          # the irradiance map's texels per side (octahedral, in MAP_FRAME): against the path tracer 86-87%
@@ -216,9 +211,8 @@ def oct_decode(u, v):
 
 @njit(cache=True)
 def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, bounced, ox, oy, oz, dx,
-                    dy, dz, ray_density, n_emit, lamp_of):
-    """(r, g, b, distance to the first surface, hit its one-sided back,
-    lr, lg, lb the part of r, g, b from the lamps: lamp_of[tri] >= 0):
+                    dy, dz, ray_density, n_emit):
+    """(r, g, b, distance to the first surface, hit its one-sided back):
     the radiance a ray from o along d brings: the bounced light
     (`bounced` / pi of the voxel where it lands), an emitter's own light
     under its MIS weight against the emitter samples (balance heuristic:
@@ -226,7 +220,6 @@ def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, 
     glass tinted; the sky where it escapes."""
     w0 = w1 = w2 = 1.0
     a0 = a1 = a2 = 0.0
-    l0 = l1 = l2 = 0.0
     first = np.inf
     back = False
     run = 0.0
@@ -255,10 +248,6 @@ def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, 
             a0 += w0 * er * w
             a1 += w1 * eg * w
             a2 += w2 * eb * w
-            if lamp_of[tri] >= 0:
-                l0 += w0 * er * w
-                l1 += w1 * eg * w
-                l2 += w2 * eb * w
         vi = _read_at(bvh, stack, double, mat_of, vnormal, vcentroid, vcut, pieces, 0.0, -dx, -dy, -dz, ox, oy, oz,
                       dx, dy, dz, t, j)
         if vi == GAP_STOP:
@@ -276,7 +265,7 @@ def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, 
         step = 1e-6 * max(1.0, t)
         run += t + step
         ox, oy, oz = ox + t * dx + step * dx, oy + t * dy + step * dy, oz + t * dz + step * dz
-    return a0, a1, a2, first, back, l0, l1, l2
+    return a0, a1, a2, first, back
 
 
 @njit(cache=True, inline="always")
@@ -293,10 +282,9 @@ def _halton(i, base, rot):
 
 
 @njit(cache=True)
-def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, lamp_of, out):
-    """The lights a probe sees as deltas: rows (dx, dy, dz, r, g, b, lamp)
-    of out, the direction, the irradiance at normal incidence (lamp 1
-    where the point lies on a lamp: lamp_of[tri] >= 0), each behind
+def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, out):
+    """The lights a probe sees as deltas: rows (dx, dy, dz, r, g, b) of
+    out, the direction and the irradiance at normal incidence, each behind
     its shadow ray (glass tints). First n_emit points on the area emitters
     (by power, stratified by a rotated Halton sequence; each carries L_e
     cos_e / (d^2 n p_A) under its MIS weight against the rays, p_A the
@@ -330,7 +318,6 @@ def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, lamp
             t0, t1, t2 = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - 1e-6))
             out[k, 0], out[k, 1], out[k, 2] = dx, dy, dz
             out[k, 3], out[k, 4], out[k, 5] = er * f * t0, eg * f * t1, eb * f * t2
-            out[k, 6] = 1.0 if lamp_of[tri] >= 0 else 0.0
             k += 1
     for li in range(surf.light_kind.shape[0]):
         dx, dy, dz, r, g, b = punctual_delta(bvh, surf, stack, ox, oy, oz, li)
@@ -338,7 +325,6 @@ def _deltas(bvh, surf, stack, ox, oy, oz, seed, probe, n_emit, ray_density, lamp
             continue
         out[k, 0], out[k, 1], out[k, 2] = dx, dy, dz
         out[k, 3], out[k, 4], out[k, 5] = r, g, b
-        out[k, 6] = 0.0
         k += 1
     return k
 
@@ -382,7 +368,7 @@ def punctual_delta(bvh, surf, stack, ox, oy, oz, li):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bounced, points, first, dirs,
-                 irr_dirs, depth_dirs, max_dist, n_emit, seed, lamps, lamp_of, lamp_rays, sh, irr, depth, backs):
+                 irr_dirs, depth_dirs, max_dist, n_emit, seed, sh, irr, depth, backs):
     """Per probe i at points[i] (its index in the grid: first + i):
     sh[i] (9, 3) the radiance's projection: the rays `dirs` reading the
     bounced light (4 pi / K sum L Y) plus the deltas (_deltas: E Y);
@@ -401,17 +387,15 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
         y = np.empty(SH)
         acc = np.zeros((SH, 3))
         eacc = np.zeros((n_irr, 3))
-        lacc = np.zeros((n_irr, 3))   # the lamps' share of eacc, replaced by their exact light below
-        delta = np.empty((n_emit + surf.light_kind.shape[0], 7))
+        delta = np.empty((n_emit + surf.light_kind.shape[0], 6))
         ox, oy, oz = points[i, 0], points[i, 1], points[i, 2]
         nb = 0
         f = 4.0 * math.pi / k_n
         density = k_n / (4.0 * math.pi)
         for k in range(k_n):
             dx, dy, dz = dirs[k, 0], dirs[k, 1], dirs[k, 2]
-            r, g, b, t, back, lr, lg, lb = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut,
-                                                           pieces, bounced, ox, oy, oz, dx, dy, dz, density, n_emit,
-                                                           lamp_of)
+            r, g, b, t, back = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, pieces,
+                                               bounced, ox, oy, oz, dx, dy, dz, density, n_emit)
             if back:
                 nb += 1
             if r == 0.0 and g == 0.0 and b == 0.0:
@@ -427,17 +411,13 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
                     eacc[q, 0] += r * cq
                     eacc[q, 1] += g * cq
                     eacc[q, 2] += b * cq
-                    lacc[q, 0] += lr * cq
-                    lacc[q, 1] += lg * cq
-                    lacc[q, 2] += lb * cq
         for c in range(SH):
             for ch in range(3):
                 acc[c, ch] *= f
         for q in range(n_irr):
             for ch in range(3):
                 eacc[q, ch] *= f
-                lacc[q, ch] *= f
-        m = _deltas(bvh, surf, stack, ox, oy, oz, seed, first + i, n_emit, density, lamp_of, delta)
+        m = _deltas(bvh, surf, stack, ox, oy, oz, seed, first + i, n_emit, density, delta)
         for k in range(m):
             dx, dy, dz = delta[k, 0], delta[k, 1], delta[k, 2]
             sh_basis(dx, dy, dz, y)
@@ -449,21 +429,6 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
                 if cq > 0.0:
                     for ch in range(3):
                         eacc[q, ch] += delta[k, 3 + ch] * cq
-                        lacc[q, ch] += delta[k, 6] * delta[k, 3 + ch] * cq
-        # the lamps' sampled share out of the map, their exact light in (lamps.lamp_factor behind lamp_rays shadow
-        # rays: what the viewer takes out again, so that the map's remainder is the rest of the light alone)
-        for q in range(n_irr):
-            for ch in range(3):
-                eacc[q, ch] -= lacc[q, ch]
-        for t in range(lamps.corners.shape[0]):
-            v0, v1, v2 = lamp_sees(bvh, stack, lamps, t, ox, oy, oz, lamp_rays)
-            if v0 == 0.0 and v1 == 0.0 and v2 == 0.0:
-                continue
-            for q in range(n_irr):
-                fq = lamp_factor(lamps, t, ox, oy, oz, irr_dirs[q, 0], irr_dirs[q, 1], irr_dirs[q, 2])
-                eacc[q, 0] += lamps.radiance[t, 0] * fq * v0
-                eacc[q, 1] += lamps.radiance[t, 1] * fq * v1
-                eacc[q, 2] += lamps.radiance[t, 2] * fq * v2
         for c in range(SH):
             for ch in range(3):
                 sh[i, c, ch] = acc[c, ch]
@@ -474,9 +439,8 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
             s1 = s2 = 0.0
             for q in range(per):
                 dd = depth_dirs[tex * per + q]
-                r, g, b, t, back, lr, lg, lb = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid,
-                                                               vcut, pieces, bounced, ox, oy, oz, dd[0], dd[1], dd[2],
-                                                               density, n_emit, lamp_of)
+                r, g, b, t, back = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut,
+                                                   pieces, bounced, ox, oy, oz, dd[0], dd[1], dd[2], density, n_emit)
                 if back:
                     nb += 1
                 t = min(t, max_dist)
@@ -514,8 +478,6 @@ class ProbeShot:
     max_dist: float
     n_emit: int
     seed: int
-    lamps: object            # lamps.LampArrays: their exact light in the maps
-    lamp_of: np.ndarray      # (nt,) int64 each triangle's lamp (-1: none)
 
 
 @dataclass(frozen=True)
@@ -549,8 +511,7 @@ def probe_block(block: ProbeBlock, shot: ProbeShot) -> ProbePart:
     g = shot.voxels
     probe_kernel(shot.bvh, shot.surf, g.double, g.mat_of, g.normal, g.centroid, g.cut, g.pieces, shot.bounced,
                  np.ascontiguousarray(block.points, np.float64), int(block.first), shot.dirs, shot.irr_dirs,
-                 shot.depth_dirs, shot.max_dist, int(shot.n_emit), int(shot.seed), shot.lamps, shot.lamp_of,
-                 PROBE_LAMP_RAYS, sh, irr, depth, backs)
+                 shot.depth_dirs, shot.max_dist, int(shot.n_emit), int(shot.seed), sh, irr, depth, backs)
     return ProbePart(sh, irr, depth, backs)
 
 
@@ -563,13 +524,9 @@ def bake_probes(prepared, solution, grid, rays: int, seed: int = 0, executor=Non
     points = probe_positions(origin, spacing, dims)
     vox = solution.voxels
     bounced = np.ascontiguousarray(solution.radiosity - vox.emission, np.float64)   # the emitters: sampled
-    surf = prepared.surfaces.arrays
-    lamps, lamp_tris = lamp_arrays(surf, with_triangles=True)
-    lamp_of = np.full(len(surf.tri_area), -1, np.int64)
-    lamp_of[lamp_tris] = np.arange(len(lamp_tris))
-    shot = ProbeShot(prepared.bvh.arrays, surf, GatherVoxels.of(prepared, vox),
+    shot = ProbeShot(prepared.bvh.arrays, prepared.surfaces.arrays, GatherVoxels.of(prepared, vox),
                      np.maximum(bounced, 0.0), ray_set(int(rays)), texel_directions(IRR),
-                     texel_directions(DEPTH, DEPTH_SUB), MAX_DIST * spacing, EMITTER_SAMPLES, int(seed), lamps, lamp_of)
+                     texel_directions(DEPTH, DEPTH_SUB), MAX_DIST * spacing, EMITTER_SAMPLES, int(seed))
     blocks = [ProbeBlock(j, a, points[a:a + PROBE_BLOCK]) for j, a in enumerate(range(0, len(points), PROBE_BLOCK))]
 
     parts = run_tasks(executor, probe_block, blocks, shot, "probes",

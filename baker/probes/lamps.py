@@ -47,7 +47,6 @@ from ..lights.lightcuts import corners_cosine
 
 MAX_LAMPS = 64     # emitter triangles taken exactly, by power
 MARKS = 16         # points on each lamp triangle for its shadow (the first k of them for fewer rays)
-PROBE_LAMP_RAYS = MARKS   # shadow rays from a probe to each lamp: the bake's and the viewer's, the same
 FAR = 5.0          # longest edges away, a lamp triangle is a point
 MID = 2.5          # ... and from here to FAR the four centroids of its quarters
 
@@ -70,10 +69,10 @@ def _marks(count: int) -> np.ndarray:
     return out
 
 
-def lamp_arrays(surf=None, limit: int = MAX_LAMPS, with_triangles: bool = False):
+def lamp_arrays(surf=None, limit: int = MAX_LAMPS) -> LampArrays:
     """The lamps of surfaces' arrays `surf`: its untextured emitter
     triangles, the `limit` brightest (power, sides counted); none where
-    surf is None. with_triangles: (LampArrays, their scene triangles)."""
+    surf is None."""
     if surf is None or limit <= 0 or len(surf.emitters) == 0:
         tris = np.zeros(0, np.int64)
     else:
@@ -84,11 +83,9 @@ def lamp_arrays(surf=None, limit: int = MAX_LAMPS, with_triangles: bool = False)
         power = (surf.tri_emission[tris].sum(axis=1) * surf.tri_area[tris] * sides) if len(tris) else np.zeros(0)
         tris = tris[np.argsort(-power, kind="stable")[:limit]]
     if len(tris) == 0:
-        lamps = lamps_of(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
-    else:
-        mats = surf.tri_material[tris]
-        lamps = lamps_of(surf.corners[tris], surf.emission[mats], surf.double_sided[mats])
-    return (lamps, tris) if with_triangles else lamps
+        return lamps_of(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
+    mats = surf.tri_material[tris]
+    return lamps_of(surf.corners[tris], surf.emission[mats], surf.double_sided[mats])
 
 
 def lamps_of(corners, radiance, double) -> LampArrays:

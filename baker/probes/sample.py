@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from ..kernels.bvh import STACK_SIZE
 from ..kernels.traverse import transmittance
 from .gather import from_map, light_towards, punctual_delta, to_map
-from .lamps import PROBE_LAMP_RAYS, LampArrays, lamp_above, lamp_arrays, lamp_factor, lamp_sees, lamps_rest
+from .lamps import LampArrays, lamp_above, lamp_arrays, lamp_factor, lamp_sees, lamps_rest
 
 # the scene's punctual lights and sun as the kernels here read them (the fields of scene.surfaces' arrays)
 LightArrays = namedtuple("LightArrays", "light_kind light_pos light_dir light_intensity light_cones")
@@ -554,7 +554,7 @@ def _center_lights(bvh, lights, lamps, rays, center, normals, out):
         out[q, 2] += b
 
 
-LAMP_RAYS = 16   # shadow rays from a shading point to each lamp triangle (lamps.MARKS at most)
+LAMP_RAYS = 16   # shadow rays from a probe or a shading point to each lamp triangle (lamps.MARKS at most)
 
 
 @dataclass(frozen=True)
@@ -567,10 +567,9 @@ class ProbeLights:
     light), nor a lamp's near field. The probes hold each punctual light
     as the delta the bake added (gather.punctual_delta: its direction from
     the probe and its irradiance behind the probe's own shadow ray), so it
-    comes out of the maps exactly, texel by texel; each lamp as Lambert's
-    formula at the probe times its shadow rays' share, which is what the
-    bake put in (gather.probe_kernel; a bake made before held the lamps
-    sampled, and keeps that estimate less this one). Once: rest (count, S,
+    comes out of the maps exactly, texel by texel; each lamp comes out as
+    Lambert's formula at the probe times its shadow rays' share (the bake's
+    sampled estimate of it, less its expectation). Once: rest (count, S,
     S, 3) float32 the maps without them (what every read then reads).
     direction, irradiance (count, L, 3) the deltas; texdirs (S^2, 3) the
     maps' texel normals; bvh, lights, lamps: the scene's arrays for the
@@ -604,9 +603,8 @@ def _probe_lights(bvh, surf, points, direction, irradiance):
 def probe_lights(grid, prepared, rays: int = LAMP_RAYS, lamps: bool = True) -> ProbeLights:
     """ProbeLights of `grid` in the scene `prepared` (its punctual lights
     and sun as the bake saw them from each probe: one shadow ray each; its
-    lamps, unless `lamps` is false: PROBE_LAMP_RAYS shadow rays each from
-    each probe, as the bake put them in), `rays` shadow rays to each lamp
-    from each shading point."""
+    lamps, unless `lamps` is false: LAMP_RAYS shadow rays each from each
+    probe), `rays` shadow rays to each lamp from each shading point."""
     from .gather import IRR, texel_directions
     from .lamps import MARKS
     surf, bvh = prepared.surfaces.arrays, prepared.bvh.arrays
@@ -626,7 +624,7 @@ def probe_lights(grid, prepared, rays: int = LAMP_RAYS, lamps: bool = True) -> P
     held = lamp_arrays(surf if lamps else None)
     if len(held.corners):
         out = np.empty(rest.shape, np.float64)
-        lamps_rest(bvh, held, np.ascontiguousarray(grid.positions(), np.float64), texdirs, PROBE_LAMP_RAYS,
+        lamps_rest(bvh, held, np.ascontiguousarray(grid.positions(), np.float64), texdirs, LAMP_RAYS,
                    np.ascontiguousarray(rest, np.float64), out)
         rest = out
     return ProbeLights(direction, irradiance, texdirs, np.ascontiguousarray(rest, np.float32), bvh,
