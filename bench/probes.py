@@ -1,7 +1,7 @@
 """Irradiance probes: count, time and bytes per scene and preset, and the
 viewer's frame time with a sphere lit by them.
 
-    python bench/probes.py [--scenes cornell_box,walkthrough] [--presets preview,default] [--accuracy] [--window]
+    python bench/probes.py [--scenes cornell_box,walkthrough] [--presets preview,default | ''] [--accuracy] [--window]
                            [--json]
 
 Per scene and preset: the solve (as the bake does it), then the probe
@@ -246,15 +246,16 @@ def accuracy_rows(scenes):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", default="cornell_box,walkthrough")
-    ap.add_argument("--presets", default="preview,default,high")
+    ap.add_argument("--presets", default="preview,default,high", help="'' for none (the window alone)")
     ap.add_argument("--window", action="store_true")
     ap.add_argument("--accuracy", action="store_true")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     scenes = args.scenes.split(",")
-    emit(args, "irradiance probes per scene and preset (probe stage alone, best of 2)",
-         probe_rows(scenes, args.presets.split(",")),
-         ["scene", "preset", "probes", "grid", "spacing", "valid", "rays", "solve s", "probes s", "MiB in file"])
+    if args.presets:
+        emit(args, "irradiance probes per scene and preset (probe stage alone, best of 2)",
+             probe_rows(scenes, args.presets.split(",")),
+             ["scene", "preset", "probes", "grid", "spacing", "valid", "rays", "solve s", "probes s", "MiB in file"])
     if args.accuracy:
         emit(args, f"probes against the path tracer at default, 14 normals each ({PICKED} probes and {PICKED} random "
                    "points per scene that see no surface nearer than a voxel cell)",

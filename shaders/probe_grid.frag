@@ -5,6 +5,7 @@
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
+#include "tone.glsl"
 uniform sampler2D u_sh;   // RGB32F: 10 texels a probe (its 9 coefficients, then (valid, 0, 0)), WIDTH a row
 uniform float u_exposure;
 in vec3 v_normal;
@@ -37,9 +38,7 @@ void main() {
                            + 0.5462742152960396 * (x * x - y * y) * coef(8));
     vec3 L = max(E, 0.0) / PI;
 #if TONEMAP
-    vec3 t = L * u_exposure;
-    t = clamp((t * (2.51 * t + 0.03)) / (t * (2.43 * t + 0.59) + 0.14), 0.0, 1.0);
-    f_color = vec4(mix(12.92 * t, 1.055 * pow(t, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, t)), 1.0);
+    f_color = vec4(tone(L, u_exposure), 1.0);
 #else
     f_color = vec4(L, 1.0);
 #endif

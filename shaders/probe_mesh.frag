@@ -5,6 +5,7 @@
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
+#include "tone.glsl"
 #ifndef TEXTURED
 #define TEXTURED 0
 #endif
@@ -33,9 +34,7 @@ void main() {
     if (u_cutoff >= 0.0 && alpha < u_cutoff) discard;
     vec3 L = u_emission + albedo * max(v_irradiance, 0.0) / PI;
 #if TONEMAP
-    vec3 x = L * u_exposure;
-    x = clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
-    f_color = vec4(mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x)), 1.0);
+    f_color = vec4(tone(L, u_exposure), 1.0);
 #else
     f_color = vec4(L, 1.0);
 #endif

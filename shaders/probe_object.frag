@@ -9,6 +9,7 @@
 #ifndef TONEMAP
 #define TONEMAP 1
 #endif
+#include "tone.glsl"
 uniform sampler2D u_object_map;   // the object's irradiance map, (u_map_size + 2) squared RGB32F, bordered
 uniform int u_map_size;
 uniform vec3 u_albedo;
@@ -41,9 +42,7 @@ void main() {
     vec3 E = max(object_irradiance(normalize(v_normal)), 0.0);
     vec3 L = u_albedo * E / PI;
 #if TONEMAP
-    vec3 x = L * u_exposure;
-    x = clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
-    f_color = vec4(mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x)), 1.0);
+    f_color = vec4(tone(L, u_exposure), 1.0);
 #else
     f_color = vec4(L, 1.0);
 #endif

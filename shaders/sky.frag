@@ -12,18 +12,14 @@ uniform bool u_hemisphere;
 uniform float u_exposure;
 in vec2 v_ndc;
 out vec4 f_color;
-vec3 aces(vec3 x) { return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0); }
-vec3 to_srgb(vec3 x) {
-    x = clamp(x, 0.0, 1.0);
-    return mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
-}
+#include "tone.glsl"
 void main() {
     vec4 a = u_inv_view_proj * vec4(v_ndc, -1.0, 1.0);
     vec4 b = u_inv_view_proj * vec4(v_ndc, 1.0, 1.0);
     vec3 dir = b.xyz / b.w - a.xyz / a.w;
     vec3 L = (u_hemisphere && dot(dir, u_up) <= 0.0) ? vec3(0.0) : u_sky;
 #if TONEMAP
-    f_color = vec4(to_srgb(aces(L * u_exposure)), 1.0);
+    f_color = vec4(tone(L, u_exposure), 1.0);
 #else
     f_color = vec4(L, 1.0);
 #endif

@@ -47,6 +47,70 @@ def test_every_shader_builds(ctx):
         build_program(ctx, name + ".vert", name + ".frag").release()
 
 
+def test_the_shaders_tone_curve_is_the_images_within_an_8bit_level(ctx):
+    """tone.glsl (exposure, ACES, the sRGB curve by square roots) against
+    baker.render.images' exact curves, over radiances from 1e-5 to 100
+    into an 8-bit target: every value within one level, 97% on it. An
+    error of 1% in the curve (or pow(x, 1 / 2.2) for it) fails."""
+    import moderngl
+
+    import shaders
+    from baker.render.images import aces_filmic, linear_to_srgb
+    n = 4096
+    values = np.geomspace(1e-5, 100.0, n).astype(np.float32)
+    frag = ("#version 330 core\nuniform sampler2D u_in;\nout vec4 f_color;\n" + shaders.source("tone.glsl")
+            + "void main() { f_color = vec4(tone(vec3(texelFetch(u_in, ivec2(gl_FragCoord.xy), 0).r), 0.7), 1.0); }\n")
+    prog = ctx.program(vertex_shader="#version 330 core\nvoid main() { vec2 p = vec2((gl_VertexID << 1) & 2, "
+                                     "gl_VertexID & 2); gl_Position = vec4(2.0 * p - 1.0, 0.0, 1.0); }\n",
+                       fragment_shader=frag)
+    src = ctx.texture((n, 1), 1, values.tobytes(), dtype="f4")
+    src.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    out = ctx.texture((n, 1), 4)
+    fbo = ctx.framebuffer([out])
+    try:
+        fbo.use()
+        ctx.viewport = (0, 0, n, 1)
+        src.use(0)
+        prog["u_in"].value = 0
+        ctx.vertex_array(prog, []).render(moderngl.TRIANGLES, vertices=3)
+        got = np.frombuffer(fbo.read(components=4), np.uint8).reshape(n, 4)[:, 0].astype(int)
+    finally:
+        for obj in (fbo, out, src, prog):
+            obj.release()
+    want = linear_to_srgb(aces_filmic(values.astype(np.float64) * 0.7)) * 255
+    assert np.abs(got - want).max() <= 1.0
+    assert np.mean(got == np.rint(want)) > 0.97
+
+
+def test_the_window_view_is_the_snapshot_tone_mapped(ctx, bake):
+    """The tone-mapped lightmap view (as the window draws it, 8 bits) is
+    the linear one (as snapshots read it) through the images' display
+    transform, within one level: the view's variants (tone curve, glass,
+    emission) agree."""
+    from baker.render.images import aces_filmic, linear_to_srgb
+    from baker.scene import camera_for
+    from viewer.renderer import Renderer
+    r = Renderer(ctx, bake)
+    cam = camera_for(bake.scene, None)
+    w, h, exposure = 96, 96, 1.7
+    shots = {}
+    for tonemap, dtype in ((True, "f1"), (False, "f4")):
+        color = ctx.renderbuffer((w, h), 4, dtype=dtype)
+        depth = ctx.depth_renderbuffer((w, h))
+        fbo = ctx.framebuffer([color], depth)
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+        r.render(cam, w, h, exposure=exposure, tonemap=tonemap)
+        raw = fbo.read(components=3, dtype=dtype)
+        shots[tonemap] = np.frombuffer(raw, np.uint8 if tonemap else np.float32).reshape(h, w, 3)
+        for obj in (fbo, color, depth):
+            obj.release()
+    r.release()
+    want = linear_to_srgb(aces_filmic(np.maximum(shots[False].astype(np.float64), 0.0) * exposure)) * 255
+    assert np.ptp(want) > 100   # a lit view, not a black one
+    assert np.abs(shots[True] - want).max() <= 1.0
+
+
 def test_camera_and_renderer_need_no_window():
     """The camera is pure maths (no GL at all); the renderer and snapshots
     take a context and never import glfw."""

@@ -68,7 +68,7 @@ class Renderer:
         uv0 = scene.uvs if scene.uvs is not None else np.zeros((n, 2), np.float32)
         data = np.concatenate([scene.vertices, uv0, bake.uv1.reshape(-1, 2)], axis=1)
         self.vbo = ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())
-        self.variants = {}  # (mode, bicubic, tonemap) -> (program, vertex array)
+        self.variants = {}  # (mode, bicubic, tonemap, textured, glass, emit texture) -> (program, vertex array)
         pages = np.ascontiguousarray(bake.pages, np.float16)
         p, size = pages.shape[0], pages.shape[1]
         self.pages = ctx.texture_array((size, size, p), 3, pages.tobytes(), dtype="f2")
@@ -104,21 +104,22 @@ class Renderer:
             self._prepared = prepare(self.bake.scene)
         return self._prepared
 
-    def variant(self, mode, bicubic, tonemap, textured=False):
+    def variant(self, mode, bicubic, tonemap, textured=False, glass=False, emit_texture=False):
         """The program (and its vertex array) of one view, built on first use."""
-        key = (MODES.index(mode), bool(bicubic), bool(tonemap), bool(textured))
+        key = (MODES.index(mode), bool(bicubic), bool(tonemap), bool(textured), bool(glass), bool(emit_texture))
         if key not in self.variants:
             from .context import build_program
             prog = build_program(self.ctx, "lightmap.vert", "lightmap.frag",
-                                 {"MODE": key[0], "BICUBIC": key[1], "TONEMAP": key[2], "TEXTURED": key[3]})
+                                 {"MODE": key[0], "BICUBIC": key[1], "TONEMAP": key[2], "TEXTURED": key[3],
+                                  "GLASS": key[4], "EMIT_TEXTURE": key[5]})
             names = [a for a in ATTRIBUTES if a in prog]  # a view may not read every attribute: skip its bytes
             fmt = " ".join(ATTRIBUTES[a][0 if a in names else 1] for a in ATTRIBUTES)
             self.variants[key] = (prog, self.ctx.vertex_array(prog, [(self.vbo, fmt, *names)]))
         return self.variants[key]
 
     def draw_sky(self, vp, tonemap, exposure):
-        """The bake's sky (if it was lit by one) over the whole viewport at
-        the far plane: surfaces drawn after it cover it; where none is, or
+        """The bake's sky (if it was lit by one) at the far plane, drawn
+        after the surfaces and before the glass: where no surface is, or
         through glass, it shows, as in the path tracer."""
         sky = self.bake.scene.sky
         if sky is None:
@@ -136,9 +137,12 @@ class Renderer:
         prog["u_hemisphere"].value = bool(sky.hemisphere)
         if "u_exposure" in prog:
             prog["u_exposure"].value = float(exposure)
-        self.ctx.disable(moderngl.DEPTH_TEST)
+        # at the far plane (depth 1, as cleared): it passes '<=' only where no surface was drawn
+        self.ctx.depth_func = "<="
+        self.ctx.fbo.depth_mask = False
         vao.render(moderngl.TRIANGLES, vertices=3)
-        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.fbo.depth_mask = True
+        self.ctx.depth_func = "<"
 
     def clip_range(self, camera):
         """Near and far planes around the scene's bounds."""
@@ -161,8 +165,12 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
-        if mode == "lightmap":
-            self.draw_sky(vp, bool(tonemap), exposure)
+        # nearest first, so that llvmpipe's early depth test skips the surfaces they hide: the moving
+        # objects (in front of the camera as a rule: drawn after the scene, the window's sphere cost the
+        # shading of the scene behind it as well, about 6 ms a frame), then the scene, the sky where
+        # nothing is, and last the thin glass, which tints whatever lies behind it (an object behind a
+        # pane too)
+        self.draw_objects(vp, mode, tonemap, exposure, objects, probes)
         self.pages.use(0)
         mats = self.bake.scene.materials
         current = None
@@ -172,11 +180,14 @@ class Renderer:
         for d in opaque + glass:
             m = mats[d.material]
             if d is (glass[0] if glass else None):
+                if mode == "lightmap":
+                    self.draw_sky(vp, bool(tonemap), exposure)
                 ctx.enable(moderngl.BLEND)
                 ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR
                 ctx.fbo.depth_mask = False
             tex = self.textures.get(d.material)
-            prog, vao = self.variant(mode, bicubic, tonemap, tex is not None)
+            emits = d.material in self.emit_textures
+            prog, vao = self.variant(mode, bicubic, tonemap, tex is not None, m.transmission >= VOXEL_PASS, emits)
             if prog is not current:  # a program's shared settings once per switch
                 current = prog
                 prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
@@ -184,32 +195,38 @@ class Renderer:
                                     ("u_emit_texture", 2)):
                     if name in prog:
                         prog[name].value = value
-            tint = tuple(float(m.transmission * a) for a in m.albedo) if m.transmission >= VOXEL_PASS else (-1.0,) * 3
+            tint = tuple(float(m.transmission * a) for a in m.albedo)
             for name, value in (("u_albedo", tuple(float((1.0 - m.transmission) * v) for v in m.albedo)),
                                 ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
                                 ("u_alpha", float(m.alpha)), ("u_cutoff", float(m.alpha_cutoff) if m.masked else -1.0),
-                                ("u_glass", tint), ("u_has_emit_texture", d.material in self.emit_textures)):
+                                ("u_glass", tint)):
                 if name in prog:  # (a view may not read it)
                     prog[name].value = value
             if tex is not None:
                 tex.use(1)
-            if d.material in self.emit_textures:
+            if emits:
                 self.emit_textures[d.material].use(2)
             vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
         if glass:
             ctx.disable(moderngl.BLEND)
             ctx.fbo.depth_mask = True
+        elif mode == "lightmap":
+            self.draw_sky(vp, bool(tonemap), exposure)
+
+    def draw_objects(self, vp, mode, tonemap, exposure, objects, probes):
+        """The moving spheres, the bake's dynamic meshes and the probe view
+        (render's `objects` and `probes`)."""
         from .objects import Placed
         spheres = [o for o in objects if not isinstance(o, Placed)]
-        if spheres:   # (after the glass: an object behind a pane is not tinted by it)
+        if spheres:
             if self.probe_objects is None:
                 from .objects import ProbeObjects
-                self.probe_objects = ProbeObjects(ctx, self.bake, self.interactive, self.prepared())
+                self.probe_objects = ProbeObjects(self.ctx, self.bake, self.interactive, self.prepared())
             self.probe_objects.draw(vp, spheres, tonemap, exposure)
         if self.bake.scene.dynamic and self.bake.probes is not None and mode == "lightmap":
             if self.dynamic is None:
                 from .objects import DynamicMeshes
-                self.dynamic = DynamicMeshes(ctx, self.bake, self.prepared(), self.interactive)
+                self.dynamic = DynamicMeshes(self.ctx, self.bake, self.prepared(), self.interactive)
             offsets = [(0.0, 0.0, 0.0)] * len(self.bake.scene.dynamic)
             for o in objects:
                 if isinstance(o, Placed):
@@ -218,7 +235,7 @@ class Renderer:
         if probes:
             if self.probe_view is None:
                 from .objects import ProbeGridView
-                self.probe_view = ProbeGridView(ctx, self.bake)
+                self.probe_view = ProbeGridView(self.ctx, self.bake)
             self.probe_view.draw(vp, tonemap, exposure)
 
     def release(self):
