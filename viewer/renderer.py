@@ -166,10 +166,9 @@ class Renderer:
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
         # nearest first, so that llvmpipe's early depth test skips the surfaces they hide: the moving
-        # objects (in front of the camera as a rule: drawn after the scene, the window's sphere cost the
-        # shading of the scene behind it as well, about 6 ms a frame), then the scene, the sky where
-        # nothing is, and last the thin glass, which tints whatever lies behind it (an object behind a
-        # pane too)
+        # objects (in front of the camera as a rule: drawn after the scene, the scene behind them would
+        # be shaded as well), then the scene, the sky where nothing is, and last the thin glass, which
+        # tints whatever lies behind it (an object behind a pane too)
         self.draw_objects(vp, mode, tonemap, exposure, objects, probes)
         self.pages.use(0)
         mats = self.bake.scene.materials

@@ -292,7 +292,7 @@ def side_normals(corners, texel_tri, texel_back):
     n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     out = np.empty((len(texel_tri), 3))
-    # a kernel, not fancy indexing: the walkthrough's 6.9 M per-triangle texels took numpy 1.4 s, one thread
+    # a kernel, not numpy's fancy indexing, which runs on one thread over every texel of a per-triangle layout
     _texel_normals(n, np.asarray(texel_tri), np.asarray(texel_back, np.bool_), out)
     return out
 
