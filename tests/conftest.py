@@ -60,6 +60,19 @@ REALSCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file
 MCGUIRE_CORNELL = os.path.join(REALSCENES, "mcguire_cornellbox", "CornellBox-Original.obj")
 
 
+def need_xvfb():
+    """Skips a test that opens a real window when Xvfb is not installed; on
+    CI (CI=true, or scripts/test.sh's VOXGI_REQUIRE_WEB=1), where
+    scripts/setup.sh installs it, its absence is a failure instead."""
+    import shutil
+    if shutil.which("xvfb-run"):
+        return
+    why = "Xvfb is not installed (scripts/setup.sh installs it)"
+    if os.environ.get("CI") or os.environ.get("VOXGI_REQUIRE_WEB") == "1":
+        pytest.fail(why + ", and CI must run the window tests")
+    pytest.skip(why)
+
+
 def skip_without_shared(path, what):
     """Skips a test whose public file (read through ../shared, never committed)
     is absent; on CI (CI=true), where ../shared lies beside the clone, its

@@ -12,7 +12,7 @@ from baker.bake import bake_scene, read_bake, write_bake
 from baker.errors import BakeFileError, SceneError
 from baker.scene import load_scene
 from scenes.generate import cornell_box, furnace_box, icosphere, two_rooms
-from tests.conftest import cli
+from tests.conftest import cli, need_xvfb
 from tests.hostile import resign_bake, split_glb
 from tests.test_probes import _sphere_pixels, assert_dark_beside_the_wall_and_lit, small
 
@@ -275,11 +275,9 @@ def test_the_window_moves_a_dynamic_mesh(furnace, tmp_path):
     """voxview's window under Xvfb: the arrow keys move the bake's dynamic
     mesh (the one chosen first); the last frame differs from the same walk
     without a key, right of where it stood."""
-    import shutil
     import subprocess
     import sys
-    if not shutil.which("xvfb-run"):
-        pytest.skip("Xvfb is not installed (scripts/setup.sh installs it)")
+    need_xvfb()
     from PIL import Image
     scripts = {"moved": [{"frame": 1, "key": "RIGHT", "action": "press"},
                          {"frame": 7, "key": "RIGHT", "action": "release"}], "still": []}

@@ -16,7 +16,7 @@ from baker.probes.gather import MAP_FRAME, MAX_PROBES, SH_BAND, ray_set, sh_basi
 from baker.probes.sample import irradiance_map_at, probe_irradiance_sh
 from baker.render.irradiance import path_traced_irradiance
 from scenes.generate import closed_box, furnace_box, thin_wall, two_rooms
-from tests.conftest import cli
+from tests.conftest import cli, need_xvfb
 from tests.hostile import resign_bake, split_glb
 
 CUBE_NORMALS = np.array([v for a in range(3) for v in (np.eye(3)[a], -np.eye(3)[a])]
@@ -439,11 +439,9 @@ def test_the_window_drops_and_moves_a_sphere(furnace_bake, tmp_path):
     """voxview's window under Xvfb: O drops a sphere in front of the
     camera, the arrow keys move it; the last frame differs from the same
     walk without it."""
-    import shutil
     import subprocess
     import sys
-    if not shutil.which("xvfb-run"):
-        pytest.skip("Xvfb is not installed (scripts/setup.sh installs it)")
+    need_xvfb()
     from PIL import Image
     path = tmp_path / "f.glb"
     write_bake(str(path), furnace_bake.bake)

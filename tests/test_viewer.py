@@ -8,7 +8,6 @@ it are compared per pixel. VOXGI_UPDATE_GOLDEN=1 rewrites them; a failure
 writes actual, expected and difference images to the test's folder."""
 import json
 import os
-import shutil
 import subprocess
 import sys
 
@@ -19,6 +18,8 @@ from baker.bake import read_bake, render_bake
 from baker.render import read_exr, write_image
 from viewer.camera import Controls, FlyCamera, look_at, perspective
 from viewer.renderer import MODES
+
+from .conftest import need_xvfb
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 GOLDEN = os.path.join(HERE, "golden")
@@ -254,12 +255,12 @@ def test_snapshot_command_writes_png_and_exr(tmp_path):
     assert r.returncode == 0 and (tmp_path / "p.png").exists(), r.stderr
 
 
-@pytest.mark.skipif(not shutil.which("xvfb-run"), reason="Xvfb is not installed (scripts/setup.sh installs it)")
 def test_real_window_under_xvfb(tmp_path, bake):
     """A glfw window on a virtual X display takes scripted key, drag and
     wheel events (through the same handlers as glfw's callbacks), renders
     frames and saves the last one: walking forward changes the picture
     (the view is nearer the back wall: brighter in the middle)."""
+    need_xvfb()
     script = [{"frame": 1, "key": "W", "action": "press"}, {"frame": 8, "key": "W", "action": "release"},
               {"frame": 9, "drag": [30, 0]}, {"frame": 10, "scroll": 1}, {"frame": 11, "key": "F2"},
               {"frame": 12, "key": "F1"}]
@@ -340,11 +341,11 @@ def test_gpu_preview_punctual_lights_and_sky(ctx, make_scene, tmp_path):
     assert np.sqrt(np.mean((a[lit] - c[lit]) ** 2)) / c[lit].mean() < 0.10
 
 
-@pytest.mark.skipif(not shutil.which("xvfb-run"), reason="Xvfb is not installed (scripts/setup.sh installs it)")
 def test_snapshot_falls_back_to_an_x_display_without_egl(tmp_path):
     """Where EGL is missing (simulated: VOXGI_NO_EGL=1), a snapshot renders
     through the X display (Xvfb here) and says so; with neither, one line
     naming both."""
+    need_xvfb()
     import os as _os
     env = dict(_os.environ, VOXGI_NO_EGL="1")
     out = tmp_path / "x.exr"
