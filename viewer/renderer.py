@@ -172,33 +172,27 @@ class Renderer:
         self.draw_objects(vp, mode, tonemap, exposure, objects, probes)
         self.pages.use(0)
         mats = self.bake.scene.materials
-        current = None
         # thin glass the bake holds no light for (t >= VOXEL_PASS) goes last: it filters what lies behind it
         glass = [d for d in self.draws if mats[d.material].transmission >= VOXEL_PASS]
         opaque = [d for d in self.draws if mats[d.material].transmission < VOXEL_PASS]
-        for d in opaque + glass:
+        current = [None]
+
+        def draw(d):
             m = mats[d.material]
-            if d is (glass[0] if glass else None):
-                if mode == "lightmap":
-                    self.draw_sky(vp, bool(tonemap), exposure)
-                ctx.enable(moderngl.BLEND)
-                ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR
-                ctx.fbo.depth_mask = False
             tex = self.textures.get(d.material)
             emits = d.material in self.emit_textures
             prog, vao = self.variant(mode, bicubic, tonemap, tex is not None, m.transmission >= VOXEL_PASS, emits)
-            if prog is not current:  # a program's shared settings once per switch
-                current = prog
+            if prog is not current[0]:  # a program's shared settings once per switch
+                current[0] = prog
                 prog["u_view_proj"].write(vp.T.astype(np.float32).tobytes())
                 for name, value in (("u_exposure", float(exposure)), ("u_pages", 0), ("u_texture", 1),
                                     ("u_emit_texture", 2)):
                     if name in prog:
                         prog[name].value = value
-            tint = tuple(float(m.transmission * a) for a in m.albedo)
             for name, value in (("u_albedo", tuple(float((1.0 - m.transmission) * v) for v in m.albedo)),
                                 ("u_emission", tuple(float(v) for v in m.emission)), ("u_page", d.page),
                                 ("u_alpha", float(m.alpha)), ("u_cutoff", float(m.alpha_cutoff) if m.masked else -1.0),
-                                ("u_glass", tint)):
+                                ("u_glass", tuple(float(m.transmission * a) for a in m.albedo))):
                 if name in prog:  # (a view may not read it)
                     prog[name].value = value
             if tex is not None:
@@ -206,11 +200,19 @@ class Renderer:
             if emits:
                 self.emit_textures[d.material].use(2)
             vao.render(moderngl.TRIANGLES, vertices=d.count, first=d.first)
-        if glass:
+
+        for d in opaque:
+            draw(d)
+        if mode == "lightmap":
+            self.draw_sky(vp, bool(tonemap), exposure)
+        if glass:   # blended as dst * tint, writing no depth
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR
+            ctx.fbo.depth_mask = False
+            for d in glass:
+                draw(d)
             ctx.disable(moderngl.BLEND)
             ctx.fbo.depth_mask = True
-        elif mode == "lightmap":
-            self.draw_sky(vp, bool(tonemap), exposure)
 
     def draw_objects(self, vp, mode, tonemap, exposure, objects, probes):
         """The moving spheres, the bake's dynamic meshes and the probe view
