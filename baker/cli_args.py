@@ -244,7 +244,8 @@ def _render_parser(sub):
                         + per_preset(lambda q: q.lightcuts.gather_spacing) + "; 0: every point gathered)")
     run_args(p)
     p.add_argument("--exposure", type=EXPOSURE, default=None, help="PNG exposure in EV (default: automatic)")
-    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    p.add_argument("--stats", metavar="FILE.json",
+                   help="write timings (wall and CPU seconds per stage), counters and peak memory as JSON")
     camera_args(p)
     solver_args(p)
     p.epilog = _presets_epilog()
@@ -311,7 +312,8 @@ def _bake_parser(sub):
                         "they are left out of the bake (no lightmap, no shadow, no bounced light) and written as "
                         "plain meshes that voxview lights from the probes and moves (needs the probes)")
     run_args(p)
-    p.add_argument("--stats", metavar="FILE.json", help="write timings, counters and peak memory as JSON")
+    p.add_argument("--stats", metavar="FILE.json",
+                   help="write timings (wall and CPU seconds per stage), counters and peak memory as JSON")
     cluster_args(p)
     solver_args(p)
     p.epilog = _presets_epilog()

@@ -48,12 +48,14 @@ class Stats:
 
     @contextmanager
     def stage(self, name: str):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         try:
             yield
         finally:
-            entry = self.stages.setdefault(name, {"seconds": 0.0})
+            entry = self.stages.setdefault(name, {"seconds": 0.0, "cpu_seconds": 0.0})
             entry["seconds"] += time.perf_counter() - t
+            # the process's CPU time over the stage (every thread's): over seconds, how many cores it kept busy
+            entry["cpu_seconds"] += time.process_time() - c
             entry["peak_rss_mb"] = round(peak_rss_mb(), 1)
 
     def count(self, **values):

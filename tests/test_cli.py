@@ -149,7 +149,11 @@ def test_voxel_view_and_stats(tmp_path):
     for key in ("voxels", "directions_per_bounce", "discrete_rays", "photons", "bounces", "stop_reason"):
         assert key in s["counters"], key
     for stage in ("voxelize", "photons", "propagation", "voxel_view"):
-        assert s["stages"][stage]["seconds"] >= 0 and s["stages"][stage]["peak_rss_mb"] > 0
+        st = s["stages"][stage]
+        assert st["seconds"] >= 0 and st["peak_rss_mb"] > 0
+        # the process's CPU time over the stage: every thread's, so at most the wall time on each core
+        assert 0 <= st["cpu_seconds"] <= st["seconds"] * (os.cpu_count() or 1) + 0.05, (stage, st)
+    assert sum(st["cpu_seconds"] for st in s["stages"].values()) > 0
     code, _, err = cli("render", "scenes/cornell_box.glb", "--method", "voxels", "--resolution", "4000",
                        "--memory-budget", "50", "-o", tmp_path / "x.png")
     assert code == 2 and err.startswith("error: scenes/cornell_box.glb: voxelization"), err
