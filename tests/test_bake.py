@@ -384,7 +384,7 @@ def test_furnace_bake_at_default_is_exact_in_every_texel():
     """The furnace box (every wall emits E = 1, albedo 0.5: H = E / (1 -
     rho) = 2 everywhere) baked at the default preset as shipped: every
     texel within 2% of exact, to the corners (measured 0.981-1.011: the
-    emitters' light in the ratio form is exact, the rest is the bounced
+    emitters' light, lamp by lamp, is exact, the rest is the bounced
     light's), texels side by side on a map within 1% of each other, and
     the same values for 1 thread and for all."""
     from baker import load_scene

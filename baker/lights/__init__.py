@@ -8,7 +8,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..config import LightcutsConfig
-from .lightcuts import SkyCells, TreeArrays, VPLArrays, brute_force, lightcut, node_patches, shade_points
+from .lamps import LampArrays, lamp_groups
+from .lightcuts import SkyCells, TreeArrays, VPLArrays, brute_force, lightcut, node_patches
+from .shade import shade_points
 from .lighttree import LightTree, build_tree
 from .ordered import ordered_vpls
 from ..scene.surfaces import SKY_HEMISPHERE
@@ -93,8 +95,10 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     by a ray per cell of its directions where they agree
     (lightcuts.sky_light; off: a ray along every direction); analytic:
     where the VPLs are the area emitters' alone, none of them textured and
-    at most ANALYTIC_EMITTERS triangles, their light takes the ratio form
-    (lightcuts.shade_points), exact wherever nothing blocks them."""
+    at most ANALYTIC_EMITTERS triangles, their light is taken from the
+    emitters themselves, lamp by lamp (lamps.lamps_light: each lamp's
+    exact unoccluded light times its visibility by rays over its solid
+    angle), exact wherever nothing blocks them."""
     points = np.ascontiguousarray(points, np.float64)
     normals = np.ascontiguousarray(normals, np.float64)
     valid = np.ones(len(points), bool) if valid is None else np.ascontiguousarray(valid, bool)
@@ -114,10 +118,11 @@ def irradiance(lights: Lights, bvh, surfaces, points, normals, valid=None, offse
     analytic = bool(analytic and not brute and len(v) and analytic_emitters(surfaces)
                     and not v.indirect.any() and (v.kind == KIND_AREA).all())
     tree = tree_arrays(t, node_patches(t.rep, t.right, patch) if len(v) else np.zeros(len(t)))
+    lamps = lamp_groups(a) if analytic else LampArrays(np.zeros(1, np.int64), np.zeros(0, np.int64))
     return shade_points(bvh.arrays, surfaces.arrays, tree, VPLArrays(v.kind, v.position, v.normal, v.area, v.power,
                                                                      patch),
                         cells, points, normals, valid, floor, float(offset), float(epsilon), int(cap), bool(brute),
-                        analytic)
+                        lamps)
 
 
 ANALYTIC_EMITTERS = 2048   # emitter triangles summed exactly at each point (lightcuts.emitters_unoccluded)

@@ -173,45 +173,53 @@ def corners_cosine(c, tri, px, py, pz, nx, ny, nz):
     return 0.5 * abs(acc)
 
 
+@njit(cache=True, inline="always")
+def emitter_cosine(surf, t, px, py, pz, nx, ny, nz):
+    """(G, far): emitter triangle t's cosine integral at p (normal n) with
+    nothing in the way: clipped to p's upper half-space (triangle_cosine),
+    or the point form A cos_l cos_p / r^2 beyond FAR_TRIANGLE x its
+    longest edge where it lies wholly above p's horizon (then far is
+    True). 0 where p is behind a one-sided emitter (it lights only the
+    side its winding's normal faces) or in an emitter's plane, or the
+    triangle is below p's horizon."""
+    c = surf.corners
+    mx, my, mz = surf.tri_normal[t, 0], surf.tri_normal[t, 1], surf.tri_normal[t, 2]
+    d = mx * (px - c[t, 0, 0]) + my * (py - c[t, 0, 1]) + mz * (pz - c[t, 0, 2])
+    e2 = 0.0
+    for k in range(3):
+        k2 = (k + 1) % 3
+        ex, ey, ez = c[t, k2, 0] - c[t, k, 0], c[t, k2, 1] - c[t, k, 1], c[t, k2, 2] - c[t, k, 2]
+        e2 = max(e2, ex * ex + ey * ey + ez * ez)
+    tiny = 1e-7 * math.sqrt(e2)
+    if surf.double_sided[surf.tri_material[t]]:
+        if abs(d) <= tiny:
+            return 0.0, False
+    elif d <= tiny:
+        return 0.0, False
+    hmin, hmax = np.inf, -np.inf
+    for k in range(3):
+        h = nx * (c[t, k, 0] - px) + ny * (c[t, k, 1] - py) + nz * (c[t, k, 2] - pz)
+        hmin, hmax = min(hmin, h), max(hmax, h)
+    if hmax <= 0.0:
+        return 0.0, False
+    gx = (c[t, 0, 0] + c[t, 1, 0] + c[t, 2, 0]) / 3.0 - px
+    gy = (c[t, 0, 1] + c[t, 1, 1] + c[t, 2, 1]) / 3.0 - py
+    gz = (c[t, 0, 2] + c[t, 1, 2] + c[t, 2, 2]) / 3.0 - pz
+    r2 = gx * gx + gy * gy + gz * gz
+    if hmin > 0.0 and r2 > FAR_TRIANGLE * FAR_TRIANGLE * e2:
+        return surf.tri_area[t] * abs(d) * (nx * gx + ny * gy + nz * gz) / (r2 * r2), True
+    return triangle_cosine(surf, t, px, py, pz, nx, ny, nz), False
+
+
 @njit(cache=True)
 def emitters_unoccluded(surf, px, py, pz, nx, ny, nz):
     """Irradiance (r, g, b) at p (normal n) from every area emitter with
-    nothing in the way: each triangle's mean radiance times its clipped
-    cosine integral (triangle_cosine), or the point form A cos_l cos_p /
-    r^2 beyond FAR_TRIANGLE x its longest edge where it lies wholly above
-    p's horizon. A one-sided emitter lights only the side its winding's
-    normal faces; a point in an emitter's plane gets nothing from it."""
+    nothing in the way: each triangle's mean radiance times its cosine
+    integral (emitter_cosine)."""
     a0 = a1 = a2 = 0.0
-    c = surf.corners
     for e in range(surf.emitters.shape[0]):
         t = surf.emitters[e]
-        mx, my, mz = surf.tri_normal[t, 0], surf.tri_normal[t, 1], surf.tri_normal[t, 2]
-        d = mx * (px - c[t, 0, 0]) + my * (py - c[t, 0, 1]) + mz * (pz - c[t, 0, 2])
-        e2 = 0.0
-        for k in range(3):
-            k2 = (k + 1) % 3
-            ex, ey, ez = c[t, k2, 0] - c[t, k, 0], c[t, k2, 1] - c[t, k, 1], c[t, k2, 2] - c[t, k, 2]
-            e2 = max(e2, ex * ex + ey * ey + ez * ez)
-        tiny = 1e-7 * math.sqrt(e2)
-        if surf.double_sided[surf.tri_material[t]]:
-            if abs(d) <= tiny:
-                continue
-        elif d <= tiny:
-            continue
-        hmin, hmax = np.inf, -np.inf
-        for k in range(3):
-            h = nx * (c[t, k, 0] - px) + ny * (c[t, k, 1] - py) + nz * (c[t, k, 2] - pz)
-            hmin, hmax = min(hmin, h), max(hmax, h)
-        if hmax <= 0.0:
-            continue
-        gx = (c[t, 0, 0] + c[t, 1, 0] + c[t, 2, 0]) / 3.0 - px
-        gy = (c[t, 0, 1] + c[t, 1, 1] + c[t, 2, 1]) / 3.0 - py
-        gz = (c[t, 0, 2] + c[t, 1, 2] + c[t, 2, 2]) / 3.0 - pz
-        r2 = gx * gx + gy * gy + gz * gz
-        if hmin > 0.0 and r2 > FAR_TRIANGLE * FAR_TRIANGLE * e2:
-            w = surf.tri_area[t] * abs(d) * (nx * gx + ny * gy + nz * gz) / (r2 * r2)
-        else:
-            w = triangle_cosine(surf, t, px, py, pz, nx, ny, nz)
+        w, _ = emitter_cosine(surf, t, px, py, pz, nx, ny, nz)
         a0 += surf.tri_emission[t, 0] * w
         a1 += surf.tri_emission[t, 1] * w
         a2 += surf.tri_emission[t, 2] * w
@@ -596,73 +604,6 @@ def sky_light(bvh, stack, surf, cells, seen, px, py, pz, nx, ny, nz, offset):
 # representatives: the living room's floor lost 7% of its sky light to the
 # adaptive shortcut; with every direction traced it matches the path tracer.
 SKY_OPEN = 0.25
-
-
-CHUNK = 64  # shading points per parallel work item
-
-
-@njit(cache=True, parallel=True)
-def shade_points(bvh, surf, tree, vpls, cells, points, normals, valid, floors, offset, epsilon, cap, brute,
-                 analytic=False):
-    """Irradiance H (N, 3) float64 at points (N, 3) with normals (N, 3)
-    (where valid): lightcuts over the tree (TreeArrays) of the VPLs
-    (VPLArrays; brute: every VPL) plus the scene's punctual lights, exact,
-    and the sky along its directions (SkyCells, sky_light; none: the
-    sky, if any, is among the VPLs); cut size (N,) and shadow rays (N,).
-    analytic (the VPLs are the area emitters' alone, of uniform
-    emission): the ratio form E = A S / U, A the emitters' exact
-    unoccluded irradiance (emitters_unoccluded), S and U the cut's
-    estimate with and without shadow rays: exact wherever nothing blocks
-    the emitters (a concave edge beside a lamp, where the VPLs' point
-    form reads up to 45% low), and the cut's own error cancels."""
-    n = points.shape[0]
-    out = np.zeros((n, 3))
-    cuts = np.zeros(n, np.int64)
-    rays = np.zeros(n, np.int64)
-    n_lights = surf.light_kind.shape[0]
-    for ch in prange((n + CHUNK - 1) // CHUNK):
-        stack = np.empty(STACK_SIZE, np.int32)
-        heap = (np.empty(cap + 2), np.empty(cap + 2, np.int64), np.empty((cap + 2, 4)))
-        seen = np.empty((cells.start.shape[0], 4))
-        for k in range(ch * CHUNK, min(n, (ch + 1) * CHUNK)):
-            if not valid[k]:
-                continue
-            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-            nx, ny, nz = normals[k, 0], normals[k, 1], normals[k, 2]
-            # the exact parts first: their sum is the floor the cut's error is bounded against
-            h0, h1, h2, r = sky_light(bvh, stack, surf, cells, seen, px, py, pz, nx, ny, nz, offset)
-            rays[k] += r
-            for i in range(n_lights):
-                lr, lg, lb, dx, dy, dz, dist = punctual_irradiance(surf, i, px, py, pz, nx, ny, nz)
-                if lr + lg + lb <= 0.0:
-                    continue
-                rays[k] += 1
-                ox, oy, oz = px + offset * nx, py + offset * ny, pz + offset * nz
-                tr, tg, tb = transmittance(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, dist * (1.0 - SHADOW_EPS))
-                h0 += lr * tr
-                h1 += lg * tg
-                h2 += lb * tb
-            if vpls.kind.shape[0] > 0:
-                if brute:
-                    c0, c1, c2 = brute_force(bvh, stack, vpls, (px, py, pz), (nx, ny, nz), offset)
-                    cuts[k] = vpls.kind.shape[0]
-                    rays[k] += vpls.kind.shape[0]
-                else:
-                    floor = LUM_R * h0 + LUM_G * h1 + LUM_B * h2 + floors[k]
-                    c0, c1, c2, u0, u1, u2, c, r = lightcut(bvh, stack, tree, vpls, (px, py, pz), (nx, ny, nz),
-                                                            offset, epsilon, cap, heap, floor)
-                    cuts[k] = c
-                    rays[k] += r
-                    if analytic:
-                        a0, a1, a2 = emitters_unoccluded(surf, px, py, pz, nx, ny, nz)
-                        c0 = a0 * c0 / u0 if u0 > 0.0 else 0.0
-                        c1 = a1 * c1 / u1 if u1 > 0.0 else 0.0
-                        c2 = a2 * c2 / u2 if u2 > 0.0 else 0.0
-                h0 += c0
-                h1 += c1
-                h2 += c2
-            out[k, 0], out[k, 1], out[k, 2] = h0, h1, h2
-    return out, cuts, rays
 
 
 @njit(cache=True)
