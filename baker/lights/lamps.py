@@ -199,12 +199,12 @@ def lamps_light(bvh, stack, surf, lamps, g, far, cum, px, py, pz, nx, ny, nz, of
             t = lamps.tris[q]
             below = cum[q - 1] if q > lamps.start[lamp] else 0.0
             width = cum[q] - below
-            if width <= 0.0:
-                continue
-            u1 = min(max((x - below) / width, 0.0), 0.9999999999)
+            u1 = min(max((x - below) / width, 0.0), 0.9999999999) if width > 0.0 else 0.5
             ok = False
             w = dist = dx = dy = dz = 0.0
-            if far[q]:
+            if width <= 0.0:
+                pass
+            elif far[q]:
                 s = math.sqrt(u1)
                 wa, wb = s * (1.0 - u2), s * u2
                 qx = c[t, 0, 0] + wa * (c[t, 1, 0] - c[t, 0, 0]) + wb * (c[t, 2, 0] - c[t, 0, 0])
@@ -245,7 +245,9 @@ def lamps_light(bvh, stack, surf, lamps, g, far, cum, px, py, pz, nx, ny, nz, of
                 s1 += w * tg
                 s2 += w * tb
                 sw += w
-            if j == m and m < n_rays and not agree:
+            # disagreeing first rays (a penumbra), or none that reached the lamp (all of them under p's
+            # horizon, the lamp mostly below it): the lamp's whole share
+            if j == m and m < n_rays and (not agree or f0 < 0.0):
                 m = n_rays
         if sw > 0.0:
             h0 += a0 * (s0 / sw)
