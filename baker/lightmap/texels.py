@@ -268,6 +268,9 @@ def inside_geometry(bvh, double, mat_of, corners, texel_tri, texel_back, point, 
                 what = back_hit(bvh, stack, double, mat_of, ox, oy, oz, dx, dy, dz, reach, near)
                 backs += what > 0
                 close += what > 1
+                left = side * side - 1 - p
+                if backs + left < PROBE_BACK * side * side or close + left < PROBE_NEAR * side * side:
+                    break   # the rest cannot reach the shares (most texels: open air)
             out[k] = backs >= PROBE_BACK * side * side and close >= PROBE_NEAR * side * side
     return out
 

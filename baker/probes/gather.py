@@ -382,11 +382,16 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
     k_n = dirs.shape[0]
     per = DEPTH_SUB * DEPTH_SUB
     n_irr = irr_dirs.shape[0]
+    ix = np.ascontiguousarray(irr_dirs[:, 0])
+    iy = np.ascontiguousarray(irr_dirs[:, 1])
+    iz = np.ascontiguousarray(irr_dirs[:, 2])
     for i in prange(n):
         stack = np.empty(STACK_SIZE, np.int32)
         y = np.empty(SH)
         acc = np.zeros((SH, 3))
-        eacc = np.zeros((n_irr, 3))
+        e0 = np.zeros(n_irr)
+        e1 = np.zeros(n_irr)
+        e2 = np.zeros(n_irr)
         delta = np.empty((n_emit + surf.light_kind.shape[0], 6))
         ox, oy, oz = points[i, 0], points[i, 1], points[i, 2]
         nb = 0
@@ -405,18 +410,20 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
                 acc[c, 0] += r * y[c]
                 acc[c, 1] += g * y[c]
                 acc[c, 2] += b * y[c]
+            # clamped rather than skipped, one channel an array: the loop over the normals vectorizes, and
+            # adding r x 0 leaves each sum's bits as the skip did
             for q in range(n_irr):
-                cq = dx * irr_dirs[q, 0] + dy * irr_dirs[q, 1] + dz * irr_dirs[q, 2]
-                if cq > 0.0:
-                    eacc[q, 0] += r * cq
-                    eacc[q, 1] += g * cq
-                    eacc[q, 2] += b * cq
+                cq = max(dx * ix[q] + dy * iy[q] + dz * iz[q], 0.0)
+                e0[q] += r * cq
+                e1[q] += g * cq
+                e2[q] += b * cq
         for c in range(SH):
             for ch in range(3):
                 acc[c, ch] *= f
         for q in range(n_irr):
-            for ch in range(3):
-                eacc[q, ch] *= f
+            e0[q] *= f
+            e1[q] *= f
+            e2[q] *= f
         m = _deltas(bvh, surf, stack, ox, oy, oz, seed, first + i, n_emit, density, delta)
         for k in range(m):
             dx, dy, dz = delta[k, 0], delta[k, 1], delta[k, 2]
@@ -424,17 +431,19 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
             for c in range(SH):
                 for ch in range(3):
                     acc[c, ch] += delta[k, 3 + ch] * y[c]
+            d0, d1, d2 = delta[k, 3], delta[k, 4], delta[k, 5]
             for q in range(n_irr):
-                cq = dx * irr_dirs[q, 0] + dy * irr_dirs[q, 1] + dz * irr_dirs[q, 2]
-                if cq > 0.0:
-                    for ch in range(3):
-                        eacc[q, ch] += delta[k, 3 + ch] * cq
+                cq = max(dx * ix[q] + dy * iy[q] + dz * iz[q], 0.0)
+                e0[q] += d0 * cq
+                e1[q] += d1 * cq
+                e2[q] += d2 * cq
         for c in range(SH):
             for ch in range(3):
                 sh[i, c, ch] = acc[c, ch]
         for q in range(n_irr):
-            for ch in range(3):
-                irr[i, q // IRR, q % IRR, ch] = eacc[q, ch]
+            irr[i, q // IRR, q % IRR, 0] = e0[q]
+            irr[i, q // IRR, q % IRR, 1] = e1[q]
+            irr[i, q // IRR, q % IRR, 2] = e2[q]
         for tex in range(DEPTH * DEPTH):
             s1 = s2 = 0.0
             for q in range(per):

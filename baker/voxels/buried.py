@@ -43,14 +43,17 @@ def _buried(bvh, stack, double, mat_of, px, py, pz, nx, ny, nz, local, near):
     e = 1e-3 * near   # off the piece's own plane
     ox, oy, oz = px + e * nx, py + e * ny, pz + e * nz
     backs = close1 = close2 = 0
-    for k in range(len(local)):
+    n = len(local)
+    for k in range(n):
         lx, ly, lz = local[k, 0], local[k, 1], local[k, 2]
         what = back_hit(bvh, stack, double, mat_of, ox, oy, oz, lx * tx + ly * bx + lz * nx,
                         lx * ty + ly * by + lz * ny, lx * tz + ly * bz + lz * nz, np.inf, near)
         backs += what > 0
         close1 += what == 2
         close2 += what == 3
-    n = len(local)
+        left = n - 1 - k
+        if backs + left < BURIED_BACK * n or close1 + close2 + left < BURIED_NEAR * n:
+            return 0.0   # the rest cannot reach the shares: most points, in open air, stop at half their rays
     if backs < BURIED_BACK * n or close1 + close2 < BURIED_NEAR * n:
         return 0.0
     if close1 >= BURIED_NEAR * n or enclosed_in_plane(bvh, stack, ox, oy, oz, tx, ty, tz, bx, by, bz, np.inf):
