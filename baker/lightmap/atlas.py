@@ -148,8 +148,11 @@ def build_atlas(values, filled, charts, emitter_chart) -> Lightmaps:
         pages[page[u], y0[u]:y0[u] + s, x0[u]:x0[u] + s] = block
     lit = np.zeros(len(unique), bool)  # a map any non-emitter chart uses
     lit[rep[~emitter_chart]] = True
-    for u in np.nonzero(lit)[0]:
-        scale[page[u]] = max(scale[page[u]], float(maps[unique[u]].astype(np.float32).max()))
+    # each map's brightest channel, all maps at once (a loop over 35,000 maps cost a fifth of a second)
+    peak = np.where(constant, mean.astype(np.float16).max(axis=1),
+                    np.maximum.reduceat(stored.max(axis=1), off[:-1]) if len(sizes) else 0).astype(np.float32)
+    u_lit = np.nonzero(lit)[0]
+    np.maximum.at(scale, page[u_lit], peak[np.asarray(unique, np.int64)[u_lit]])
     for p in range(n_pages):  # a page of emitters only: scale by its own texels
         if scale[p] <= 0:
             scale[p] = float(pages[p].max())

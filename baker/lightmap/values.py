@@ -282,8 +282,10 @@ def preview_texels(prepared, solution, layout, seed=0) -> TexelSet:
         n = cf.sum(axis=1)
         mean = (cv * cf[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
         cv = np.where(cf[..., None], cv, mean[:, None, :])   # a corner that found no voxel: the others' mean
-        idx = corner_values(layout, corners, small, cv, point, off, values)
-        found[idx] = np.repeat(n > 0, layout.size[small].astype(np.int64) ** 2)
+        corner_values(layout, corners, small, cv, point, off, values)
+        size_s = layout.size[small].astype(np.int64) ** 2
+        found[np.repeat(off[small] - np.cumsum(size_s) + size_s, size_s) + np.arange(int(size_s.sum()))] = \
+            np.repeat(n > 0, size_s)
     return finish(layout, off, size, ttri, tback, point, covered, inside, values, found)
 
 
@@ -295,6 +297,22 @@ def side_normals(corners, texel_tri, texel_back):
     # a kernel, not numpy's fancy indexing, which runs on one thread over every texel of a per-triangle layout
     _texel_normals(n, np.asarray(texel_tri), np.asarray(texel_back, np.bool_), out)
     return out
+
+
+@njit(cache=True, parallel=True)
+def texel_coords(off, size, total):
+    """(column, row) (N,) int32 of every texel in its map (map m: the
+    size[m]^2 texels from off[m], row-major): one pass, where numpy's
+    mod and floor division over every texel of a per-triangle layout
+    took a second."""
+    qi = np.zeros(total, np.int32)
+    qj = np.zeros(total, np.int32)
+    for m in prange(len(size)):
+        s = size[m]
+        for k in range(s * s):
+            qi[off[m] + k] = k % s
+            qj[off[m] + k] = k // s
+    return qi, qj
 
 
 @njit(cache=True, parallel=True)
@@ -452,16 +470,14 @@ def lightcuts_texels(prepared, solution, layout, lights, config, progress=None,
     todo = np.nonzero(want)[0]
     between = np.zeros(len(point), bool)
     if interpolate > 0:   # shade the even lattice, then each texel between agreeing lattice texels takes their mean
-        m_of = np.repeat(np.arange(len(size)), size * size)
-        q = np.arange(len(point)) - off[m_of]
-        qi, qj = q % size[m_of], q // size[m_of]
-        on = want & (qi % STRIDE == 0) & (qj % STRIDE == 0)
+        qi, qj = texel_coords(off, size, len(point))
+        on = want & (((qi | qj) & (STRIDE - 1)) == 0)   # steps are powers of two
         first = np.nonzero(on)[0]
         values[first] = shade(point[first], normals[first], np.ones(len(first), bool), floor=floor_at(first))
         step = STRIDE // 2
         shift = SHIFT * (np.broadcast_to(layout.texel, len(size)) if layout.per_triangle else np.full(len(size), texel))
         while step >= 1:
-            level = want & (qi % step == 0) & (qj % step == 0) & ~on
+            level = want & (((qi | qj) & (step - 1)) == 0) & ~on
             reach = np.inf if layout.per_triangle else 2.5 * step * texel  # xatlas: another chart
             got = between_lattice(values, values @ LUMINANCE, on & ~inside, level & ~inside, point, normals, off, size,
                                   reach, float(interpolate), step, np.ascontiguousarray(shift, np.float64))
@@ -704,12 +720,9 @@ def corner_values(layout, corners, charts, values_at_corners, point, off, values
     """Fills, in place, the texels of the sub-texel charts `charts` from the
     values at their corner points (m, 3, 3): linear in the texel's point
     over the triangle (barycentrics taken against the corner points,
-    extrapolated a little towards the true corners), never below 0.
-    Returns the texels filled."""
+    extrapolated a little towards the true corners), never below 0."""
     interpolate_corners(corners, layout.tri[charts], off[charts], layout.size[charts].astype(np.int64),
                         np.ascontiguousarray(values_at_corners, np.float64), point, float(CORNER_IN), values)
-    size = layout.size[charts].astype(np.int64) ** 2
-    return np.repeat(off[charts] - np.cumsum(size) + size, size) + np.arange(int(size.sum()))
 
 
 def finish(layout, off, size, ttri, tback, point, covered, inside, values, found) -> TexelSet:
@@ -718,7 +731,7 @@ def finish(layout, off, size, ttri, tback, point, covered, inside, values, found
     outline reads), the other covered ones keep their own value, and the
     texels around the triangles are filled from them (texels.py)."""
     valid = covered & found & ~inside
-    values = np.where((covered & found)[:, None], values, 0.0)
+    values[~(covered & found)] = 0.0   # in place: a per-triangle layout's values are millions of texels
     filled = valid.copy()
     fill(values, filled, off, size, 1, covered & found & inside)
     filled |= covered & found  # deeper inside texels: their own value
