@@ -24,6 +24,7 @@ import hashlib
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 
 from .charts import MIN_SIZE
 
@@ -88,28 +89,75 @@ def to_stored(values):
     return np.maximum(values, 0.0).astype(np.float16)
 
 
+@njit(cache=True, inline="always")
+def half_value(bits):
+    """The value of a half float given as its bits (uint16), exactly
+    (numba has no float16)."""
+    b = np.int64(bits)
+    sign = -1.0 if b & 0x8000 else 1.0
+    e = (b >> 10) & 0x1F
+    m = b & 0x3FF
+    if e == 0:
+        return sign * m * 2.0 ** -24
+    if e == 31:
+        return sign * np.inf if m == 0 else np.nan
+    return sign * (1024 + m) * 2.0 ** (e - 25)
+
+
+@njit(cache=True, parallel=True)
+def map_stats(bits, filled, off, mean, spread, count):
+    """Per map c (texels off[c]:off[c + 1] of the half floats `bits`):
+    its filled texels' count, mean (summed in texel order) and spread (the
+    largest channel's max - min; 0 if none filled)."""
+    for c in prange(len(off) - 1):
+        s0 = s1 = s2 = 0.0
+        lo0 = lo1 = lo2 = np.inf
+        hi0 = hi1 = hi2 = -np.inf
+        n = 0
+        for k in range(off[c], off[c + 1]):
+            if filled[k]:
+                n += 1
+                v0, v1, v2 = half_value(bits[k, 0]), half_value(bits[k, 1]), half_value(bits[k, 2])
+                s0, s1, s2 = s0 + v0, s1 + v1, s2 + v2
+                lo0, lo1, lo2 = min(lo0, v0), min(lo1, v1), min(lo2, v2)
+                hi0, hi1, hi2 = max(hi0, v0), max(hi1, v1), max(hi2, v2)
+        count[c] = n
+        d = max(n, 1)
+        mean[c, 0], mean[c, 1], mean[c, 2] = s0 / d, s1 / d, s2 / d
+        spread[c] = max(hi0 - lo0, hi1 - lo1, hi2 - lo2) if n else 0.0
+
+
 def _single_colour(stored, filled, off):
     """Per map (texels off[c]:off[c + 1] of `stored`): the mean (nc, 3)
     float64 of its filled texels, and whether it is of a single colour
     (its filled texels' spread within CONSTANT_REL of the brightest
-    channel's mean, or none filled: mean 0). All maps at once: a loop
-    over 57,000 maps cost a second."""
+    channel's mean, or none filled: mean 0). One kernel over the maps: a
+    per-triangle layout has a hundred thousand, and numpy's passes over
+    every texel cost half a second."""
     nc = len(off) - 1
-    of_map = np.repeat(np.arange(nc), np.diff(off))
-    idx = np.nonzero(filled)[0]
-    m = of_map[idx]
-    vals = stored[idx].astype(np.float64)
-    count = np.bincount(m, minlength=nc)
     mean = np.zeros((nc, 3))
     spread = np.zeros(nc)
-    if len(idx):
-        for k in range(3):
-            mean[:, k] = np.bincount(m, weights=vals[:, k], minlength=nc)
-        mean /= np.maximum(count, 1)[:, None]
-        first = np.flatnonzero(np.r_[True, m[1:] != m[:-1]])   # each map's first filled texel (idx is sorted)
-        spread[m[first]] = (np.maximum.reduceat(vals, first, axis=0) -
-                            np.minimum.reduceat(vals, first, axis=0)).max(axis=1)
+    count = np.zeros(nc, np.int64)
+    map_stats(stored.view(np.uint16), filled, np.asarray(off, np.int64), mean, spread, count)
     return mean, (count == 0) | (spread <= CONSTANT_REL * mean.max(axis=1))
+
+
+@njit(cache=True, parallel=True)
+def place_maps(pages, bits, flat_bits, off, unique, constant, page, x0, y0, usize, peak):
+    """Map unique[u] (half floats: texels from off[c] of `bits`, or its one
+    colour flat_bits[c] where constant) into pages[page[u]] at (x0[u],
+    y0[u]), usize[u] texels square; peak[u] its brightest channel."""
+    for u in prange(len(unique)):
+        c = unique[u]
+        s = usize[u]
+        top = np.float32(0.0)
+        for j in range(s):
+            for i in range(s):
+                for ch in range(3):
+                    v = np.float32(half_value(flat_bits[c, ch] if constant[c] else bits[off[c] + j * s + i, ch]))
+                    pages[page[u], y0[u] + j, x0[u] + i, ch] = v
+                    top = max(top, v)
+        peak[u] = top
 
 
 def build_atlas(values, filled, charts, emitter_chart) -> Lightmaps:
@@ -142,17 +190,15 @@ def build_atlas(values, filled, charts, emitter_chart) -> Lightmaps:
     page, x0, y0, n_pages = pack_quadtree(usize)
     pages = np.zeros((n_pages, PAGE, PAGE, 3), np.float32)
     scale = np.zeros(n_pages, np.float32)
-    for u, c in enumerate(unique):
-        s = usize[u]
-        block = maps[c].reshape(s, s, 3).astype(np.float32)
-        pages[page[u], y0[u]:y0[u] + s, x0[u]:x0[u] + s] = block
+    uc = np.asarray(unique, np.int64)
+    peak = np.zeros(len(uc), np.float32)
+    # one kernel over the maps: a loop over 35,000 of them in Python cost half a second
+    place_maps(pages, stored.view(np.uint16), mean.astype(np.float16).view(np.uint16), np.asarray(off, np.int64),
+               uc, constant, page, x0, y0, usize.astype(np.int64), peak)
     lit = np.zeros(len(unique), bool)  # a map any non-emitter chart uses
     lit[rep[~emitter_chart]] = True
-    # each map's brightest channel, all maps at once (a loop over 35,000 maps cost a fifth of a second)
-    peak = np.where(constant, mean.astype(np.float16).max(axis=1),
-                    np.maximum.reduceat(stored.max(axis=1), off[:-1]) if len(sizes) else 0).astype(np.float32)
     u_lit = np.nonzero(lit)[0]
-    np.maximum.at(scale, page[u_lit], peak[np.asarray(unique, np.int64)[u_lit]])
+    np.maximum.at(scale, page[u_lit], peak[u_lit])
     for p in range(n_pages):  # a page of emitters only: scale by its own texels
         if scale[p] <= 0:
             scale[p] = float(pages[p].max())
