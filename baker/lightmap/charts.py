@@ -89,7 +89,7 @@ class Charts:
         point, covered = texel_points(corners, self.tri, self.corners2d, self.size, off, float(inset), open_edge)
         if bvh is not None:
             onto_coplanar(bvh.arrays, corners, self.tri, self.back, self.axis, self.origin, self.texel,
-                          self.size, off, point, covered, float(lift))
+                          self.size, off, point, covered, float(lift), self.centroid)
         per = np.repeat(np.arange(len(self), dtype=np.int32), size ** 2)
         return off, size, point, covered, self.tri[per].astype(np.int32), self.back[per], per, self.corners2d
 
