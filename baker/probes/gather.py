@@ -269,6 +269,18 @@ def _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut, 
 
 
 @njit(cache=True, inline="always")
+def _first_hit(bvh, stack, double, mat_of, ox, oy, oz, dx, dy, dz):
+    """(distance to the first surface (inf: none), hit its one-sided
+    back): what _radiance_along says of a ray's first hit, without its
+    light (the distance map's rays need no more)."""
+    t, j, _, _ = closest_hit(bvh, stack, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+    if j < 0:
+        return np.inf, False
+    hx, hy, hz = hit_normal(bvh, j)
+    return t, not (-(hx * dx + hy * dy + hz * dz) > 0.0 or double[mat_of[bvh.tri_index[j]]])
+
+
+@njit(cache=True, inline="always")
 def _halton(i, base, rot):
     f = 1.0 / base
     r = 0.0
@@ -448,8 +460,7 @@ def probe_kernel(bvh, surf, double, mat_of, vnormal, vcentroid, vcut, pieces, bo
             s1 = s2 = 0.0
             for q in range(per):
                 dd = depth_dirs[tex * per + q]
-                r, g, b, t, back = _radiance_along(bvh, surf, stack, double, mat_of, vnormal, vcentroid, vcut,
-                                                   pieces, bounced, ox, oy, oz, dd[0], dd[1], dd[2], density, n_emit)
+                t, back = _first_hit(bvh, stack, double, mat_of, ox, oy, oz, dd[0], dd[1], dd[2])
                 if back:
                     nb += 1
                 t = min(t, max_dist)

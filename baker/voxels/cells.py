@@ -10,7 +10,7 @@ boundaries of each cell's run in that order).
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .clip import area_centroid, clip_plane, piece_polygon
 from .tolerances import PARALLEL_COS, SHEET_BACK_COS
@@ -125,7 +125,7 @@ def side_signatures(order, runs, key, facing, area, centroid, normal, tol, patch
     return sig
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, centroid, normal, corners, origin, inv_h,
                     min_part, patch, crowd, min_cutter):
     """For each piece: the piece of another facing, triangle and smooth
@@ -138,7 +138,7 @@ def find_straddlers(by_cell, runs, key, facing, piece_tri, piece_cell, area, cen
     voxelize.merge_clutter)."""
     n = by_cell.shape[0]
     cut = np.full(n, -1, np.int64)
-    for r in range(runs.shape[0] - 1):
+    for r in prange(runs.shape[0] - 1):   # cells apart: each writes only its own pieces' cut
         a, b = runs[r], runs[r + 1]
         if b - a < 2:
             continue
