@@ -41,6 +41,7 @@ from ..kernels.bvh import STACK_SIZE
 from ..kernels.colour import LUMINANCE
 from ..kernels.sampling import frame
 from ..kernels.traverse import any_hit, closest_hit_batch
+from ..scene.topology import row_labels
 
 RADIUS = 1.5      # spacings: a record serves points this near
 MIN_COS = 0.9     # a record serves points whose normal is within about 25 degrees of its own
@@ -75,8 +76,7 @@ def representatives(points, normals, key):
     m = len(points)
     if not m:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
-    _, of = np.unique(key, axis=0, return_inverse=True)
-    of = of.ravel()
+    of = row_labels(key)
     k = int(of.max()) + 1
     count = np.bincount(of, minlength=k)
     mean = np.stack([np.bincount(of, weights=points[:, c], minlength=k) for c in range(3)], axis=1) / count[:, None]

@@ -10,7 +10,7 @@ def triangle_adjacency(vertices, triangles):
     nt = len(triangles)
     if nt == 0:
         return np.zeros(1, np.int64), np.zeros(0, np.int32)
-    weld = _weld(np.asarray(vertices, np.float64))
+    weld = row_labels(np.asarray(vertices, np.float64))
     corner = weld[np.asarray(triangles)]
     e = np.concatenate([corner[:, [0, 1]], corner[:, [1, 2]], corner[:, [2, 0]]])
     e.sort(axis=1)
@@ -30,18 +30,20 @@ def triangle_adjacency(vertices, triangles):
     return offsets, pairs[:, 1].astype(np.int32)
 
 
-def _weld(v):
-    """(n,) int64: one label per distinct corner position of v (n, 3)
-    (np.unique over rows sorts them as records, several times slower)."""
-    if not len(v):
+def row_labels(a):
+    """(n,) int64: each row of a (n, j) labelled by the rank of its value
+    among the distinct rows, in lexicographic order (np.unique(a, axis=0,
+    return_inverse=True)'s inverse, which sorts the rows as records,
+    several times slower). Rows equal as numbers share a label."""
+    if not len(a):
         return np.zeros(0, np.int64)
-    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
-    s = v[order]
-    new = np.ones(len(v), bool)
+    order = np.lexsort(a.T[::-1])
+    s = a[order]
+    new = np.ones(len(a), bool)
     new[1:] = (s[1:] != s[:-1]).any(axis=1)
-    weld = np.empty(len(v), np.int64)
-    weld[order] = np.cumsum(new) - 1
-    return weld
+    out = np.empty(len(a), np.int64)
+    out[order] = np.cumsum(new) - 1
+    return out
 
 
 @njit(cache=True)
