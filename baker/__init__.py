@@ -23,6 +23,11 @@ import os as _os  # noqa: E402
 # families), so threads that sleep lose less beside other work and nothing on a quiet machine
 # (bench/threads.py). The user's own setting wins.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# numpy asks the kernel for transparent huge pages under every array of 4 MiB or more; where the guest's memory
+# is backed lazily by its host (a Firecracker VM, as our CI and benchmark machines are) first touching a huge
+# page costs several times its small pages, and a bake makes gigabytes of short-lived per-texel arrays
+# (bench/results/texel_shading.md). Set before numpy is imported; the user's own setting wins.
+_os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 from .kernel_cache import sync as _sync_kernel_cache  # noqa: E402
 

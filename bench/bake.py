@@ -12,7 +12,7 @@ at 512x512 (about 2 mm a pixel, 256 spp; the mean ratio, the worst 8x8 block and
 the RMSE of 4x4-pixel means, which keeps the reference's own noise
 out). References are cached in bench/out.
 
-    python bench/bake.py [--runs 3] [--scenes cornell_box walkthrough] [--texel-density D] [--json]
+    python bench/bake.py [--runs 3] [--scenes cornell_box walkthrough] [--texel-density D] [--uv U] [--no-probes] [--json]
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import numpy as np
 from common import ROOT, emit
 
 PRESETS = ("preview", "default", "high")
-STAGES = ("bvh", "voxelize", "photons", "propagation", "charts", "lights", "texels", "atlas", "write")
+STAGES = ("bvh", "voxelize", "photons", "propagation", "probes", "charts", "lights", "texels", "atlas", "write")
 
 
 def bake(scene, preset, out, stats, extra=()):
@@ -119,10 +119,14 @@ def main():
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--ref-spp", type=int, default=4096, help="path tracer samples of the references")
     ap.add_argument("--texel-density", type=float, help="passed to every bake (default: the presets')")
+    ap.add_argument("--uv", choices=("auto", "per-triangle", "xatlas"), help="passed to every bake (default: the presets')")
+    ap.add_argument("--no-probes", action="store_true", help="passed to every bake: no probe stage")
     ap.add_argument("--images", help="write the walkthrough's sun crops (bake and path tracer) as PNGs here")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     extra = ["--texel-density", str(args.texel_density)] if args.texel_density else []
+    extra += ["--uv", args.uv] if args.uv else []
+    extra += ["--no-probes"] if args.no_probes else []
     rows, shading_rows, error_rows, crop_rows = [], [], [], []
     tmp = tempfile.mkdtemp(prefix="voxgi-bench-")
     for scene in args.scenes:
