@@ -690,3 +690,35 @@ def test_the_nearest_charted_side_by_sweep_matches_brute_force():
     q = rng.uniform(-2, 2, (300, 3))
     want = np.argmin(((q[:, None, :] - pts[None]) ** 2).sum(axis=2), axis=1)
     np.testing.assert_array_equal(_nearest(np.ascontiguousarray(pts), np.ascontiguousarray(q)), want)
+
+
+def test_half_value_reads_every_half_float_exactly():
+    """atlas.half_value (numba has no float16) against numpy's conversion
+    for all 65,536 bit patterns (NaNs: NaN)."""
+    from numba import njit
+
+    from baker.lightmap.atlas import half_value
+
+    @njit
+    def values(bits, out):
+        for i in range(len(bits)):
+            out[i] = half_value(bits[i])
+
+    bits = np.arange(1 << 16).astype(np.uint16)
+    got = np.zeros(len(bits))
+    values(bits, got)
+    want = bits.view(np.float16).astype(np.float64)
+    nan = np.isnan(want)
+    assert np.array_equal(np.isnan(got), nan)
+    assert np.array_equal(got[~nan], want[~nan])
+    assert np.array_equal(np.signbit(got[~nan]), np.signbit(want[~nan]))   # -0.0 stays -0.0
+
+
+def test_texel_coords_are_each_texels_column_and_row():
+    from baker.lightmap.values import texel_coords
+    size = np.array([8, 16, 8, 32], np.int64)
+    off = np.r_[0, np.cumsum(size ** 2)].astype(np.int64)
+    qi, qj = texel_coords(off, size, int(off[-1]))
+    for m in range(len(size)):
+        j, i = np.divmod(np.arange(size[m] ** 2), size[m])
+        assert np.array_equal(qi[off[m]:off[m + 1]], i) and np.array_equal(qj[off[m]:off[m + 1]], j)

@@ -372,3 +372,21 @@ def test_duplicate_faces_count_once(tmp_path):
     normal_z = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])[:, 2]
     assert (normal_z > 0).sum() == 2 and (normal_z < 0).sum() == 2
     assert s.triangle_areas().sum() == pytest.approx(2.0)
+
+
+def test_row_labels_are_numpys_unique_row_inverse():
+    """scene.topology.row_labels (a lexsort) labels rows as np.unique(axis=0,
+    return_inverse=True) does: integer keys with negatives, float positions
+    where -0.0 and 0.0 are one corner."""
+    from baker.scene.topology import row_labels
+    rng = np.random.default_rng(3)
+    for a in (rng.integers(-5, 5, (2000, 2)), rng.integers(0, 3, (3000, 5)), rng.integers(-(1 << 40), 1 << 40, (500, 3))):
+        _, want = np.unique(a, axis=0, return_inverse=True)
+        assert np.array_equal(row_labels(a), want.ravel())
+    v = rng.integers(-2, 3, (4000, 3)).astype(np.float64)
+    v[::5] *= -1.0   # -0.0 where 0.0 was
+    _, want = np.unique(v, axis=0, return_inverse=True)
+    got = row_labels(v)
+    assert np.array_equal(got, want.ravel())
+    assert len(np.unique(got)) == len(np.unique(v + 0.0, axis=0))
+    assert len(row_labels(np.zeros((0, 3)))) == 0
