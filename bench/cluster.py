@@ -153,7 +153,7 @@ def main():
             if tile == TILE:
                 base = (wall, serial, ex.calls, s)
                 # where the serial part is: each stage less the tasks it ran
-                in_stage = {"photons": kinds.get("photons", 0.0),
+                in_stage = {"voxelize": kinds.get("pieces", 0.0), "photons": kinds.get("photons", 0.0),
                             "propagation": kinds.get("voxels", 0.0) + kinds.get("families", 0.0),
                             "texels": kinds.get("tile", 0.0)}
                 stages = bake_once.stages

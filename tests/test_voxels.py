@@ -311,3 +311,23 @@ def test_a_board_pushed_into_the_floor_takes_no_light_from_it(tmp_path, monkeypa
         assert np.all(np.abs(ratio - 1) < 0.12), (np.sort(ratio)[:3], v.cell[floor][np.argsort(ratio)[:3]])
     else:
         assert ratio.min() < 0.7
+
+
+def test_buried_weights_do_not_depend_on_the_blocks_of_pieces(tmp_path, monkeypatch):
+    """The buried-piece test runs as tasks of PIECE_BLOCK pieces: blocks of
+    7 give the voxels bit for bit what one block gives, and the board's
+    buried floor pieces are weighed down in both (the test is not vacuous:
+    some voxel's weighted area is under its plain area)."""
+    import baker.voxels.buried as buried
+    _board_on_floor(tmp_path / "board.glb", -0.9, 1.1, -0.7, 0.9, False)
+    scene = load_scene(tmp_path / "board.glb")
+    one = voxelize(scene, cell_size=0.5)
+    blocks = []
+    task = buried.piece_block
+    monkeypatch.setattr(buried, "piece_block", lambda block, shot: blocks.append(block.number) or task(block, shot))
+    monkeypatch.setattr(buried, "PIECE_BLOCK", 7)
+    many = voxelize(scene, cell_size=0.5)
+    assert len(blocks) > 2
+    for f in ("area", "surface_area", "centroid", "normal", "albedo"):
+        np.testing.assert_array_equal(getattr(one, f), getattr(many, f))
+    assert (one.area < one.surface_area * 0.99).any()

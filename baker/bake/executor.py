@@ -191,7 +191,7 @@ class Executor:
         self._numbered = 0
         self.counts = {"tasks": 0, "tiles_resumed": 0, "retries": 0, "bytes_sent": 0, "bytes_received": 0,
                        "transfer_seconds": 0.0}
-        self.named = {}      # tasks run per kind ("tile", "photons", "voxels", "families", "probes")
+        self.named = {}      # tasks run per kind ("tile", "pieces", "photons", "voxels", "families", "probes")
 
     def start(self):
         """A bake begins: a cluster checks its workers' versions."""
@@ -295,7 +295,7 @@ class Executor:
         c = self.counts
         resumed = f", {c['tiles_resumed']:,} from the checkpoint" if c["tiles_resumed"] else ""
         kinds = f"{self.named.get('tile', 0):,} tiles of {self.tile:,} points{resumed}"
-        for name, what in (("photons", "photon blocks"), ("voxels", "voxel blocks"),
+        for name, what in (("pieces", "buried-piece blocks"), ("photons", "photon blocks"), ("voxels", "voxel blocks"),
                            ("families", "blocks of directions"), ("probes", "probe blocks")):
             if self.named.get(name):
                 kinds += f", {self.named[name]:,} {what}"

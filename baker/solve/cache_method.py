@@ -136,7 +136,7 @@ def _solve(scene, config, stats, bvh, surfaces, progress, keep_bounces, executor
     scene, bvh, surfaces = prepared.scene, prepared.bvh, prepared.surfaces
     with stats.stage("voxelize"):
         vox = voxelize(scene, resolution_for(scene, config), config.cell_size, config.memory_budget_mb, surfaces,
-                       bvh)
+                       bvh, executor)
         release_freed_memory()
     n = len(vox)
     n_photons = config.photon_count(n)

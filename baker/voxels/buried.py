@@ -19,6 +19,7 @@ are all buried keeps all of it.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -107,21 +108,64 @@ def buried_kernel(bvh, double, mat_of, corners, piece_tri, piece_cell, piece_pla
         out[p] = total / cnt
 
 
+PIECE_BLOCK = 65536   # pieces per task (each piece its own: any split gives the same bits)
+
+
+@dataclass(frozen=True)
+class PieceShot:
+    """What every block of pieces shares (sent to a worker once)."""
+    bvh: object
+    double: np.ndarray
+    mat_of: np.ndarray
+    corners: np.ndarray
+    origin: np.ndarray
+    h: float
+    local: np.ndarray
+    near: float
+
+
+@dataclass(frozen=True)
+class PieceBlock:
+    number: int
+    tri: np.ndarray
+    cell: np.ndarray
+    plane: np.ndarray
+    sign: np.ndarray
+    centroids: np.ndarray
+    normals: np.ndarray
+
+    def describe(self) -> str:
+        return f"buried-piece block {self.number} ({len(self.tri):,} pieces)"
+
+
+def piece_block(block: PieceBlock, shot: PieceShot) -> np.ndarray:
+    """The pure task: a block's pieces' weights (buried_kernel)."""
+    out = np.zeros(len(block.tri))
+    buried_kernel(shot.bvh, shot.double, shot.mat_of, shot.corners, block.tri, block.cell, block.plane, block.sign,
+                  block.centroids, block.normals, shot.origin, shot.h, BURIED_SAMPLES, shot.local, shot.near, out)
+    return out
+
+
 def piece_weights(bvh, surfaces, corners, piece_tri, piece_cell, piece_plane, piece_sign, centroids, normals, origin,
-                  h: float) -> np.ndarray:
+                  h: float, executor=None) -> np.ndarray:
     """(m,) weights in [BURIED_FLOOR, 1] of pieces (triangles piece_tri
     clipped to cells piece_cell of the grid (origin, h), cut by
     piece_plane on piece_sign's side, grid units; world `centroids`, unit
-    side `normals`): the share of their points that are not buried."""
-    out = np.zeros(len(piece_tri))
-    if len(piece_tri):
-        a = surfaces.arrays
-        buried_kernel(bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(corners, np.float64),
-                      piece_tri.astype(np.int32), piece_cell.astype(np.int64),
-                      np.ascontiguousarray(piece_plane, np.float64), np.ascontiguousarray(piece_sign, np.int8),
-                      np.ascontiguousarray(centroids, np.float64), np.ascontiguousarray(normals, np.float64),
-                      np.asarray(origin, np.float64), float(h), BURIED_SAMPLES, spiral_hemisphere(BURIED_RAYS),
-                      BURIED_REACH * h, out)
+    side `normals`): the share of their points that are not buried.
+    Blocks of PIECE_BLOCK pieces are tasks on `executor` (None: here)."""
+    from ..tasks import run_tasks
+    if not len(piece_tri):
+        return np.zeros(0)
+    a = surfaces.arrays
+    shot = PieceShot(bvh.arrays, a.double_sided, a.tri_material, np.ascontiguousarray(corners, np.float64),
+                     np.asarray(origin, np.float64), float(h), spiral_hemisphere(BURIED_RAYS), BURIED_REACH * h)
+    tri, cell = piece_tri.astype(np.int32), piece_cell.astype(np.int64)
+    plane, sign = np.ascontiguousarray(piece_plane, np.float64), np.ascontiguousarray(piece_sign, np.int8)
+    cen, nrm = np.ascontiguousarray(centroids, np.float64), np.ascontiguousarray(normals, np.float64)
+    blocks = [PieceBlock(j, tri[i:i + PIECE_BLOCK], cell[i:i + PIECE_BLOCK], plane[i:i + PIECE_BLOCK],
+                         sign[i:i + PIECE_BLOCK], cen[i:i + PIECE_BLOCK], nrm[i:i + PIECE_BLOCK])
+              for j, i in enumerate(range(0, len(tri), PIECE_BLOCK))]
+    out = np.concatenate(run_tasks(executor, piece_block, blocks, shot, "pieces"))
     return np.maximum(out, BURIED_FLOOR)
 
 

@@ -542,7 +542,8 @@ def _common_sign(sign, starts):
     return np.where(lo == hi, lo, 0).astype(sign.dtype)
 
 
-def buried_weights(scene, pieces: Pieces, order, vox_of, grid: Grid, corners, sides_tri, bvh=None, surfaces=None):
+def buried_weights(scene, pieces: Pieces, order, vox_of, grid: Grid, corners, sides_tri, bvh=None, surfaces=None,
+                   executor=None):
     """Step 6c: each piece's share not buried in another object (buried.py),
     which its area counts with in its voxel's area: a piece pushed inside
     another part takes no share of the light its voxel receives."""
@@ -555,7 +556,8 @@ def buried_weights(scene, pieces: Pieces, order, vox_of, grid: Grid, corners, si
         from ..scene import pack
         surfaces = pack(scene)
     w = piece_weights(bvh, surfaces, corners, sides_tri[pieces.side], pieces.cell, pieces.plane, pieces.sign,
-                      grid.origin + pieces.centroid / pieces.area[:, None] * grid.h, pieces.normal, grid.origin, grid.h)
+                      grid.origin + pieces.centroid / pieces.area[:, None] * grid.h, pieces.normal, grid.origin, grid.h,
+                      executor)
     vox_piece = np.empty(len(order), np.int64)
     vox_piece[order] = vox_of
     return voxel_relative(w, pieces.area, vox_piece, int(vox_of[-1]) + 1)
@@ -587,11 +589,12 @@ def _relative_plane(plane, cell):
 
 
 def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_mb: float = 8192.0,
-             surfaces=None, bvh=None) -> Voxels:
+             surfaces=None, bvh=None, executor=None) -> Voxels:
     """Scene -> Voxels (the steps of the module docstring). Raises
     BudgetError (with the estimate) before allocating when the estimate
     exceeds memory_budget_mb. bvh: the scene's (built here if not given),
-    for the pieces' buried share."""
+    for the pieces' buried share, whose blocks of pieces are tasks on
+    `executor` (bake/executor.py; None: here, the same bits)."""
     grid = grid_for(scene, resolution, cell_size)
     corners = scene.triangle_corners()
     sides_tri, sides_sign = _sides(scene)
@@ -608,7 +611,7 @@ def voxelize(scene, resolution: int = 64, cell_size: float = 0.0, memory_budget_
     two_sided = scene.double_sided[scene.material_ids[sides_tri[pieces.side]]]
     order, vox_of = group_pieces(pieces, key, facing, axis, by_cell, runs, two_sided)
     checkpoint()
-    weight = buried_weights(scene, pieces, order, vox_of, grid, corners, sides_tri, bvh, surfaces)
+    weight = buried_weights(scene, pieces, order, vox_of, grid, corners, sides_tri, bvh, surfaces, executor)
     sums = voxel_sums(scene, pieces, order, vox_of, sides_tri, sides_sign, corners, grid, surfaces, weight)
     lookup = piece_lookup(pieces, key, order, vox_of, sides_tri, len(scene.triangles))
     starts = np.ones(len(vox_of), bool)
