@@ -68,7 +68,10 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
     than the box (beyond 3 sqrt(A) of the largest VPL's area);
     and the cosines do prune: with the VPLs' normals spread `spread`
     around one axis, some nodes are bounded well below lum / (pi d^2)
-    (p beside or behind their cone, or their box below p's plane)."""
+    (p beside or behind their cone, or their box below p's plane): a
+    ninth point faces away from every VPL's box, where each node's bound
+    must be well under it (eight random points alone may find no such
+    node with two VPLs)."""
     from baker.lights import tree_arrays
     from baker.lights.lightcuts import COS_MIN, node_bound, node_patches
     rng = np.random.default_rng(seed)
@@ -83,10 +86,12 @@ def test_node_bound_holds_every_leaf_below_it(n, spread, seed):
     tree = tree_arrays(t, node_patch)
     lum = v.power @ LUM
     pruned = near = 0
-    for _ in range(8):
-        p = rng.uniform(-1.5, 1.5, 3)
+    lo, hi = v.position.min(axis=0), v.position.max(axis=0)
+    for k in range(9):
         pn = rng.normal(size=3)
         pn /= np.linalg.norm(pn)
+        # the ninth: twice the boxes' diagonal out along pn, facing on: every box lies below its plane
+        p = rng.uniform(-1.5, 1.5, 3) if k < 8 else 0.5 * (lo + hi) + 2 * max(np.linalg.norm(hi - lo), 0.5) * pn
         d = v.position - p
         r2 = (d * d).sum(axis=1)
         u = d / np.sqrt(r2)[:, None]
